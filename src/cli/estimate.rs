@@ -1,0 +1,79 @@
+//! `photopose estimate`: one-shot pose and size from one stereo frame.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::bail;
+
+use crate::config::Config;
+use crate::estimate::{self, Prepared, Report};
+use crate::frame::StereoImages;
+use crate::model::PhotoModel;
+
+#[derive(clap::Args, Debug)]
+pub struct EstimateArgs {
+    /// Photo-model file written by `photopose model`.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Side-by-side stereo frame (left eye in the left half).
+    #[arg(long, conflicts_with_all = ["left", "right"])]
+    pub sbs: Option<PathBuf>,
+    /// Left image (with --right) instead of --sbs.
+    #[arg(long, requires = "right")]
+    pub left: Option<PathBuf>,
+    /// Right image (with --left).
+    #[arg(long, requires = "left")]
+    pub right: Option<PathBuf>,
+    /// Configuration file (default: the built-in config/default.toml).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Generations (default: [ga] generations).
+    #[arg(long)]
+    pub generations: Option<usize>,
+    /// RNG seed (default: [ga] seed); the same seed gives the same result.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Write the result as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write a side-by-side picture with the best model projected on both eyes.
+    #[arg(long)]
+    pub overlay: Option<PathBuf>,
+}
+
+pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
+    let config = Config::load(args.config.as_deref())?;
+    let model = PhotoModel::load(&args.model)?;
+    let images = match (&args.sbs, &args.left, &args.right) {
+        (Some(sbs), None, None) => StereoImages::load_sbs(sbs)?,
+        (None, Some(l), Some(r)) => StereoImages::load_pair(l, r)?,
+        _ => bail!("give the frame as --sbs FRAME or as --left L --right R"),
+    };
+    let generations = args.generations.unwrap_or(config.ga.generations).max(1);
+    if generations == 0 {
+        bail!("--generations must be at least 1");
+    }
+    let seed = args.seed.unwrap_or(config.ga.seed);
+    let bar = super::progress_bar(generations as u64, "generations");
+    let start = Instant::now();
+    let outcome = estimate::run(&model, &images, &config, generations, seed, &mut |g| bar.set_position(g as u64))?;
+    bar.finish_and_clear();
+    let elapsed = start.elapsed().as_secs_f64();
+    print!("{}", estimate::table(&model, &outcome));
+    println!(
+        "mode {:?}, {} generations, {} evaluations in {:.3} s; F_L {:.4}, F_R {:.4} (pose of the model in the hand frame)",
+        config.ga.mode, outcome.generations, outcome.evaluations, elapsed, outcome.fitness.left, outcome.fitness.right
+    );
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&Report::new(&model, &outcome))?;
+        std::fs::write(path, text + "\n").map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(path) = &args.overlay {
+        let prepared = Prepared::new(&model, &images, &config)?;
+        let picture = crate::overlay::draw(&images, &prepared.scorer, &prepared.pyramid.levels[0], &model, &outcome.best);
+        picture.save(path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,496 @@
+//! Configuration: the TOML tables of `config/default.toml`, parsed in two stages —
+//! raw serde structs (every field defaulted, unknown keys rejected), then a validated
+//! [`Config`] the rest of photopose trusts.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use serde::Deserialize;
+
+use crate::calibration::{Calibration, CalibrationError};
+use crate::color::ColorClasses;
+
+/// The built-in configuration, used when no `--config` is given.
+pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
+/// The example factory calibration the built-in configuration refers to.
+pub const EXAMPLE_CALIBRATION: &str = include_str!("../config/SN-example.conf");
+const EXAMPLE_CALIBRATION_NAME: &str = "SN-example.conf";
+
+/// A configuration problem, always naming the file.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Toml { path: PathBuf, message: String },
+    #[error("{path}: [{table}] {field}: {problem}")]
+    Invalid {
+        path: PathBuf,
+        table: &'static str,
+        field: &'static str,
+        problem: String,
+    },
+    #[error(transparent)]
+    Calibration(#[from] CalibrationError),
+}
+
+/// Which method the estimator runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// The paper taken literally: binary GA, raw-hue outer test.
+    Paper,
+    /// Colour-class aware outer test, coarse-to-fine real-valued GA with local refinement.
+    Robust,
+}
+
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+struct RawConfig {
+    camera: RawCamera,
+    hand_eye: RawHandEye,
+    search: RawSearch,
+    ga: GaSettings,
+    model: ModelSettings,
+    fitness: FitnessParams,
+    robust: RobustSettings,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawCamera {
+    calibration: PathBuf,
+}
+
+impl Default for RawCamera {
+    fn default() -> Self {
+        Self {
+            calibration: PathBuf::from(EXAMPLE_CALIBRATION_NAME),
+        }
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawHandEye {
+    translation_mm: [f64; 3],
+    rotation_wxyz: [f64; 4],
+}
+
+impl Default for RawHandEye {
+    fn default() -> Self {
+        Self {
+            translation_mm: [0.0; 3],
+            rotation_wxyz: [1.0, 0.0, 0.0, 0.0],
+        }
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawSearch {
+    x_mm: [f64; 2],
+    y_mm: [f64; 2],
+    z_mm: [f64; 2],
+    size_mm: [f64; 2],
+    aspect_k: [f64; 2],
+}
+
+impl Default for RawSearch {
+    fn default() -> Self {
+        Self {
+            x_mm: [-300.0, 300.0],
+            y_mm: [-300.0, 300.0],
+            z_mm: [300.0, 1200.0],
+            size_mm: [20.0, 400.0],
+            aspect_k: [0.5, 2.0],
+        }
+    }
+}
+
+/// GA search space in the hand frame (`[search]`), validated: every range finite and
+/// increasing, depth and sizes positive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SearchSpace {
+    pub x_mm: [f64; 2],
+    pub y_mm: [f64; 2],
+    pub z_mm: [f64; 2],
+    /// Range of the model length `L`; with the photo's `L_P` it gives the range of α.
+    pub size_mm: [f64; 2],
+    /// Range of `k = β/α`.
+    pub aspect_k: [f64; 2],
+}
+
+/// `[ga]`: the genetic algorithm.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GaSettings {
+    pub mode: Mode,
+    pub population: usize,
+    pub generations: usize,
+    pub seed: u64,
+    /// Fraction of the population that survives each generation unchanged (sorted best first).
+    pub survivors: f64,
+    /// Probability that a child is made by crossover (else it is a mutated copy).
+    pub crossover_rate: f64,
+    /// Paper mode: probability of flipping each bit of a child.
+    pub bit_mutation_rate: f64,
+    /// Worker threads for fitness evaluation; 0 = one per core.
+    pub threads: usize,
+}
+
+impl Default for GaSettings {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Robust,
+            population: 100,
+            generations: 1000,
+            seed: 1,
+            survivors: 0.2,
+            crossover_rate: 0.7,
+            bit_mutation_rate: 0.02,
+            threads: 0,
+        }
+    }
+}
+
+/// `[robust]`: the default mode's search strategy.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RobustSettings {
+    /// Image pyramid levels (1 = full resolution only); level `l` halves the images `l` times.
+    pub pyramid_levels: usize,
+    /// Share of the generations spent on each level, coarsest first (normalised).
+    pub level_share: Vec<f64>,
+    /// Independent populations started on the coarsest level; the best continues.
+    pub restarts: usize,
+    /// Fraction of each new generation that is random immigrants on the coarsest level.
+    pub immigrants: f64,
+    /// Evaluations of the final local refinement at full resolution.
+    pub refine_evaluations: usize,
+    /// Minimum |cos| between the card normal and the line of sight (edge-on guard).
+    pub min_facing_cos: f64,
+}
+
+impl Default for RobustSettings {
+    fn default() -> Self {
+        Self {
+            pyramid_levels: 3,
+            level_share: vec![0.5, 0.25, 0.25],
+            restarts: 4,
+            immigrants: 0.1,
+            refine_evaluations: 600,
+            min_facing_cos: 0.3,
+        }
+    }
+}
+
+/// `[model]`: how `photopose model` samples the photo.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelSettings {
+    /// Grid step in photo pixels; 0 chooses it so the box holds about `target_points`.
+    pub step_px: f64,
+    pub target_points: usize,
+    /// Width of the outer strip in photo pixels; 0 = 15 % of the box's shorter side.
+    pub outer_width_px: f64,
+    /// Size of the central rectangle (paper's BECG) whose mean hue is `H̄_in`, as a
+    /// fraction of the box.
+    pub center_fraction: f64,
+}
+
+impl Default for ModelSettings {
+    fn default() -> Self {
+        Self {
+            step_px: 0.0,
+            target_points: 900,
+            outer_width_px: 0.0,
+            center_fraction: 0.5,
+        }
+    }
+}
+
+/// `[fitness]`: the constants of eqs. 12–18 and Table 1.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FitnessParams {
+    pub e1: f64,
+    pub e2: f64,
+    pub e3: f64,
+    pub e4: f64,
+    /// Outer point: `|H_I − H̄_in| ≥ outer_hue_threshold` is background (eq. 16).
+    pub outer_hue_threshold: u8,
+    /// Inner point of an "other" colour: close when the hues differ by at most this.
+    pub inner_hue_tolerance: u8,
+    pub mu: f64,
+    pub sigma: f64,
+    /// Table 1: `V ≤ black_v_max` is black.
+    pub black_v_max: u8,
+    /// Table 1: `S ≤ achromatic_s_max` (not black) is gray or white.
+    pub achromatic_s_max: u8,
+    /// Table 1: an achromatic colour with `V ≥ white_v_min` is white.
+    pub white_v_min: u8,
+}
+
+impl FitnessParams {
+    /// The colour classes of Table 1 with these thresholds.
+    pub fn classes(&self) -> ColorClasses {
+        ColorClasses {
+            black_v_max: self.black_v_max,
+            achromatic_s_max: self.achromatic_s_max,
+            white_v_min: self.white_v_min,
+        }
+    }
+}
+
+impl Default for FitnessParams {
+    fn default() -> Self {
+        Self {
+            e1: 2.0,
+            e2: -0.5,
+            e3: 0.5,
+            e4: -1.9,
+            outer_hue_threshold: 15,
+            inner_hue_tolerance: 15,
+            mu: 1.0,
+            sigma: 0.08,
+            black_v_max: 45,
+            achromatic_s_max: 30,
+            white_v_min: 221,
+        }
+    }
+}
+
+/// The validated configuration.
+#[derive(Debug, Clone)]
+pub struct Config {
+    pub calibration: Calibration,
+    /// `CL_T_H`: hand coordinates → left-camera coordinates.
+    pub left_from_hand: Isometry3<f64>,
+    pub search: SearchSpace,
+    pub ga: GaSettings,
+    pub robust: RobustSettings,
+    pub model: ModelSettings,
+    pub fitness: FitnessParams,
+}
+
+impl Config {
+    /// Loads `path`, or the built-in default configuration when `None`.
+    pub fn load(path: Option<&Path>) -> Result<Config, ConfigError> {
+        match path {
+            None => Self::parse(DEFAULT_TOML, Path::new("config/default.toml (built in)"), None),
+            Some(p) => {
+                let text = std::fs::read_to_string(p).map_err(|source| ConfigError::Read {
+                    path: p.to_path_buf(),
+                    source,
+                })?;
+                let dir = p.parent().unwrap_or(Path::new("."));
+                Self::parse(&text, p, Some(dir))
+            }
+        }
+    }
+
+    /// Parses configuration text; `dir` resolves a relative calibration path
+    /// (`None`: the built-in configuration with the built-in example calibration).
+    pub fn parse(text: &str, path: &Path, dir: Option<&Path>) -> Result<Config, ConfigError> {
+        let raw: RawConfig = toml::from_str(text).map_err(|e| ConfigError::Toml {
+            path: path.to_path_buf(),
+            message: e.message().replace('\n', "; ") + &toml_location(text, e.span()),
+        })?;
+        let invalid = |table, field, problem: String| ConfigError::Invalid {
+            path: path.to_path_buf(),
+            table,
+            field,
+            problem,
+        };
+        let calibration = match dir {
+            None if raw.camera.calibration == Path::new(EXAMPLE_CALIBRATION_NAME) => {
+                Calibration::parse(EXAMPLE_CALIBRATION, Path::new("config/SN-example.conf"))?
+            }
+            None => Calibration::load(&raw.camera.calibration)?,
+            Some(d) => Calibration::load(&d.join(&raw.camera.calibration))?,
+        };
+        let left_from_hand = hand_eye(&raw.hand_eye).map_err(|p| invalid("hand_eye", "rotation_wxyz", p))?;
+        if raw.hand_eye.translation_mm.iter().any(|v| !v.is_finite()) {
+            return Err(invalid("hand_eye", "translation_mm", "must be finite numbers".into()));
+        }
+        let s = &raw.search;
+        for (field, range, positive) in [
+            ("x_mm", s.x_mm, false),
+            ("y_mm", s.y_mm, false),
+            ("z_mm", s.z_mm, true),
+            ("size_mm", s.size_mm, true),
+            ("aspect_k", s.aspect_k, true),
+        ] {
+            check_range(range, positive).map_err(|p| invalid("search", field, p))?;
+        }
+        let search = SearchSpace {
+            x_mm: s.x_mm,
+            y_mm: s.y_mm,
+            z_mm: s.z_mm,
+            size_mm: s.size_mm,
+            aspect_k: s.aspect_k,
+        };
+        let ga = raw.ga;
+        if ga.population < 4 {
+            return Err(invalid("ga", "population", format!("{} is too small (at least 4)", ga.population)));
+        }
+        if !(ga.survivors > 0.0 && ga.survivors < 1.0) {
+            return Err(invalid("ga", "survivors", format!("{} must lie in (0, 1)", ga.survivors)));
+        }
+        for (field, v) in [("crossover_rate", ga.crossover_rate), ("bit_mutation_rate", ga.bit_mutation_rate)] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(invalid("ga", field, format!("{v} must lie in [0, 1]")));
+            }
+        }
+        let robust = raw.robust;
+        if robust.pyramid_levels == 0 || robust.pyramid_levels > 5 {
+            return Err(invalid("robust", "pyramid_levels", format!("{} must be 1 to 5", robust.pyramid_levels)));
+        }
+        if robust.level_share.len() != robust.pyramid_levels
+            || robust.level_share.iter().any(|v| !v.is_finite() || *v < 0.0)
+            || robust.level_share.iter().sum::<f64>() <= 0.0
+        {
+            return Err(invalid(
+                "robust",
+                "level_share",
+                "needs one non-negative share per pyramid level, not all zero".into(),
+            ));
+        }
+        if robust.restarts == 0 {
+            return Err(invalid("robust", "restarts", "must be at least 1".into()));
+        }
+        if !(0.0..1.0).contains(&robust.immigrants) {
+            return Err(invalid("robust", "immigrants", format!("{} must lie in [0, 1)", robust.immigrants)));
+        }
+        if !(0.0..1.0).contains(&robust.min_facing_cos) {
+            return Err(invalid("robust", "min_facing_cos", format!("{} must lie in [0, 1)", robust.min_facing_cos)));
+        }
+        let model = raw.model;
+        if !(model.step_px.is_finite() && model.step_px >= 0.0) {
+            return Err(invalid("model", "step_px", format!("{} must be ≥ 0", model.step_px)));
+        }
+        if !(model.outer_width_px.is_finite() && model.outer_width_px >= 0.0) {
+            return Err(invalid("model", "outer_width_px", format!("{} must be ≥ 0", model.outer_width_px)));
+        }
+        if !(model.center_fraction > 0.0 && model.center_fraction <= 1.0) {
+            return Err(invalid("model", "center_fraction", format!("{} must lie in (0, 1]", model.center_fraction)));
+        }
+        if model.target_points < 16 {
+            return Err(invalid("model", "target_points", "must be at least 16".into()));
+        }
+        let fitness = raw.fitness;
+        for (field, v) in [
+            ("e1", fitness.e1),
+            ("e2", fitness.e2),
+            ("e3", fitness.e3),
+            ("e4", fitness.e4),
+            ("mu", fitness.mu),
+        ] {
+            if !v.is_finite() {
+                return Err(invalid("fitness", field, "must be a finite number".into()));
+            }
+        }
+        if !(fitness.sigma.is_finite() && fitness.sigma > 0.0) {
+            return Err(invalid("fitness", "sigma", format!("{} must be > 0", fitness.sigma)));
+        }
+        if fitness.e1 * 1.0 + fitness.e3 <= 0.0 || fitness.e1 <= 0.0 || fitness.e3 < 0.0 {
+            return Err(invalid("fitness", "e1", "e1 must be > 0 and e3 ≥ 0 (they define the maximum m)".into()));
+        }
+        Ok(Config {
+            calibration,
+            left_from_hand,
+            search,
+            ga,
+            robust,
+            model,
+            fitness,
+        })
+    }
+}
+
+fn toml_location(text: &str, span: Option<std::ops::Range<usize>>) -> String {
+    match span {
+        Some(r) => {
+            let line = text[..r.start.min(text.len())].matches('\n').count() + 1;
+            format!(" (line {line})")
+        }
+        None => String::new(),
+    }
+}
+
+fn check_range(r: [f64; 2], positive: bool) -> Result<(), String> {
+    if !r[0].is_finite() || !r[1].is_finite() {
+        return Err(format!("[{}, {}] must be finite numbers", r[0], r[1]));
+    }
+    if r[0] >= r[1] {
+        return Err(format!("[{}, {}] is empty or inverted (min must be < max)", r[0], r[1]));
+    }
+    if positive && r[0] <= 0.0 {
+        return Err(format!("[{}, {}] must be positive", r[0], r[1]));
+    }
+    Ok(())
+}
+
+fn hand_eye(raw: &RawHandEye) -> Result<Isometry3<f64>, String> {
+    let [w, x, y, z] = raw.rotation_wxyz;
+    let q = Quaternion::new(w, x, y, z);
+    let n = q.norm();
+    if !n.is_finite() || (n - 1.0).abs() > 1e-3 {
+        return Err(format!("[{w}, {x}, {y}, {z}] is not a unit quaternion (norm {n:.4})"));
+    }
+    let t = raw.translation_mm;
+    Ok(Isometry3::from_parts(
+        Translation3::from(Vector3::new(t[0], t[1], t[2])),
+        UnitQuaternion::from_quaternion(q),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fixture(name: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/config").join(name)
+    }
+
+    #[test]
+    fn built_in_default_equals_shipped_file() {
+        let builtin = Config::load(None).unwrap();
+        let shipped =
+            Config::load(Some(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/default.toml"))).unwrap();
+        assert_eq!(builtin.search, shipped.search);
+        assert_eq!(builtin.ga, shipped.ga);
+        assert_eq!(builtin.search.z_mm, [300.0, 1200.0]);
+        assert_eq!(builtin.ga.population, 100);
+        assert_eq!(builtin.fitness.e4, -1.9);
+        assert_eq!(builtin.fitness, FitnessParams::default());
+    }
+
+    #[test]
+    fn valid_fixtures_load() {
+        let c = Config::load(Some(&fixture("valid-hand-eye.toml"))).unwrap();
+        assert_eq!(c.ga.mode, Mode::Paper);
+        assert!((c.left_from_hand.translation.vector.x - 50.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn invalid_fixtures_name_file_and_problem() {
+        for (name, needle) in [
+            ("invalid-inverted-range.toml", "[search] z_mm: [900, 300] is empty or inverted"),
+            ("invalid-nan.toml", "[search] x_mm: [NaN, 300] must be finite"),
+            ("invalid-unknown-key.toml", "unknown field `populaton`"),
+            ("invalid-syntax.toml", "line 3"),
+            ("invalid-quaternion.toml", "not a unit quaternion"),
+            ("invalid-missing-calibration.toml", "cannot read"),
+        ] {
+            let err = Config::load(Some(&fixture(name))).unwrap_err().to_string();
+            assert!(err.contains(needle), "{name}: {err}");
+            assert!(err.contains(".toml") || err.contains(".conf"), "{name}: {err}");
+            assert!(!err.contains('\n'), "{name}: one line: {err}");
+        }
+    }
+}

@@ -1,0 +1,237 @@
+//! Stereo frames: loading side-by-side or separate images, and the per-frame colour
+//! data the fitness reads (one colour code and one raw hue byte per pixel), computed
+//! once per frame for every pyramid level.
+
+use std::path::{Path, PathBuf};
+
+use image::{imageops, RgbImage};
+
+use crate::camera::StereoRig;
+use crate::color::{rgb_to_hsv, ColorClasses};
+
+/// A problem reading a frame.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    #[error("cannot read image {path}: {message}")]
+    Image { path: PathBuf, message: String },
+    #[error("{path}: side-by-side frame width {width} is odd (left and right halves must match)")]
+    OddWidth { path: PathBuf, width: u32 },
+    #[error("{left} is {lw}x{lh} but {right} is {rw}x{rh}: both eyes must have the same size")]
+    SizeMismatch {
+        left: PathBuf,
+        right: PathBuf,
+        lw: u32,
+        lh: u32,
+        rw: u32,
+        rh: u32,
+    },
+}
+
+/// The left and right images of one stereo frame.
+#[derive(Debug, Clone)]
+pub struct StereoImages {
+    pub left: RgbImage,
+    pub right: RgbImage,
+}
+
+fn read_rgb(path: &Path) -> Result<RgbImage, FrameError> {
+    let img = image::ImageReader::open(path)
+        .map_err(|e| FrameError::Image {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?
+        .with_guessed_format()
+        .map_err(|e| FrameError::Image {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?
+        .decode()
+        .map_err(|e| FrameError::Image {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+    Ok(img.to_rgb8())
+}
+
+/// Reads any image the `image` crate decodes (PNG, JPEG) as RGB8.
+pub fn load_rgb(path: &Path) -> Result<RgbImage, FrameError> {
+    read_rgb(path)
+}
+
+impl StereoImages {
+    /// Splits a side-by-side image (left eye in the left half).
+    pub fn from_sbs(sbs: &RgbImage, path: &Path) -> Result<Self, FrameError> {
+        let (w, h) = sbs.dimensions();
+        if w % 2 != 0 {
+            return Err(FrameError::OddWidth {
+                path: path.to_path_buf(),
+                width: w,
+            });
+        }
+        let half = w / 2;
+        Ok(Self {
+            left: imageops::crop_imm(sbs, 0, 0, half, h).to_image(),
+            right: imageops::crop_imm(sbs, half, 0, half, h).to_image(),
+        })
+    }
+
+    /// Reads a side-by-side frame file.
+    pub fn load_sbs(path: &Path) -> Result<Self, FrameError> {
+        Self::from_sbs(&read_rgb(path)?, path)
+    }
+
+    /// Reads separate left and right images.
+    pub fn load_pair(left: &Path, right: &Path) -> Result<Self, FrameError> {
+        let (l, r) = (read_rgb(left)?, read_rgb(right)?);
+        if l.dimensions() != r.dimensions() {
+            return Err(FrameError::SizeMismatch {
+                left: left.to_path_buf(),
+                right: right.to_path_buf(),
+                lw: l.width(),
+                lh: l.height(),
+                rw: r.width(),
+                rh: r.height(),
+            });
+        }
+        Ok(Self { left: l, right: r })
+    }
+
+    /// Joins the eyes into one side-by-side image.
+    pub fn to_sbs(&self) -> RgbImage {
+        let (w, h) = self.left.dimensions();
+        let mut out = RgbImage::new(2 * w, h);
+        imageops::replace(&mut out, &self.left, 0, 0);
+        imageops::replace(&mut out, &self.right, w as i64, 0);
+        out
+    }
+
+    /// Size of one eye.
+    pub fn eye_size(&self) -> (u32, u32) {
+        self.left.dimensions()
+    }
+}
+
+/// Colour data of one image: per pixel the Table 1 colour code and the raw OpenCV hue.
+#[derive(Debug, Clone)]
+pub struct ColorPlane {
+    pub width: usize,
+    pub height: usize,
+    /// [`crate::color`] code per pixel, row-major.
+    pub code: Vec<u8>,
+    /// Raw OpenCV hue per pixel (0 for pure grey, as OpenCV gives), row-major.
+    pub hue: Vec<u8>,
+}
+
+impl ColorPlane {
+    pub fn from_rgb(img: &RgbImage, classes: &ColorClasses) -> Self {
+        let (w, h) = img.dimensions();
+        let n = (w * h) as usize;
+        let (mut code, mut hue) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for p in img.pixels() {
+            let (hh, s, v) = rgb_to_hsv(p[0], p[1], p[2]);
+            code.push(classes.code(hh, s, v));
+            hue.push(hh);
+        }
+        Self {
+            width: w as usize,
+            height: h as usize,
+            code,
+            hue,
+        }
+    }
+}
+
+/// One pyramid level: the rig scaled to it and both colour planes.
+#[derive(Debug, Clone)]
+pub struct FrameLevel {
+    /// Image scale relative to full resolution (1, 1/2, 1/4, …).
+    pub scale: f64,
+    pub rig: StereoRig,
+    pub left: ColorPlane,
+    pub right: ColorPlane,
+}
+
+/// Per-frame colour data at every pyramid level, level 0 at full resolution.
+#[derive(Debug, Clone)]
+pub struct FramePyramid {
+    pub levels: Vec<FrameLevel>,
+}
+
+impl FramePyramid {
+    /// Computes the colour planes once per frame; coarser levels average 2×2 blocks of RGB.
+    pub fn build(images: &StereoImages, rig: &StereoRig, levels: usize, classes: &ColorClasses) -> Self {
+        let mut out = Vec::with_capacity(levels);
+        let (mut l, mut r) = (images.left.clone(), images.right.clone());
+        let mut scale = 1.0;
+        for level in 0..levels.max(1) {
+            if level > 0 {
+                l = half(&l);
+                r = half(&r);
+                scale *= 0.5;
+            }
+            let mut level_rig = rig.scaled(scale);
+            level_rig.width = l.width();
+            level_rig.height = l.height();
+            out.push(FrameLevel {
+                scale,
+                rig: level_rig,
+                left: ColorPlane::from_rgb(&l, classes),
+                right: ColorPlane::from_rgb(&r, classes),
+            });
+        }
+        Self { levels: out }
+    }
+}
+
+/// Halves an image by averaging 2×2 blocks.
+fn half(img: &RgbImage) -> RgbImage {
+    let (w, h) = (img.width() / 2, img.height() / 2);
+    RgbImage::from_fn(w.max(1), h.max(1), |x, y| {
+        let mut acc = [0u32; 3];
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let p = img.get_pixel((2 * x + dx).min(img.width() - 1), (2 * y + dy).min(img.height() - 1));
+            for c in 0..3 {
+                acc[c] += p[c] as u32;
+            }
+        }
+        image::Rgb([(acc[0] / 4) as u8, (acc[1] / 4) as u8, (acc[2] / 4) as u8])
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::Rgb;
+
+    #[test]
+    fn side_by_side_splits_into_eyes() {
+        let mut sbs = RgbImage::from_pixel(8, 2, Rgb([10, 10, 10]));
+        sbs.put_pixel(4, 1, Rgb([255, 0, 0]));
+        let st = StereoImages::from_sbs(&sbs, Path::new("f.png")).unwrap();
+        assert_eq!(st.eye_size(), (4, 2));
+        assert_eq!(st.right.get_pixel(0, 1).0, [255, 0, 0]);
+        assert_eq!(st.to_sbs(), sbs);
+        let odd = RgbImage::new(7, 2);
+        let e = StereoImages::from_sbs(&odd, Path::new("f.png")).unwrap_err().to_string();
+        assert!(e.contains("f.png") && e.contains("odd"), "{e}");
+    }
+
+    #[test]
+    fn missing_or_corrupt_image_names_the_file() {
+        let e = StereoImages::load_sbs(Path::new("/nonexistent/frame.png")).unwrap_err().to_string();
+        assert!(e.contains("frame.png"), "{e}");
+        let p = std::env::temp_dir().join(format!("photopose-corrupt-{}.png", std::process::id()));
+        std::fs::write(&p, b"\x89PNG\r\n\x1a\nnot really").unwrap();
+        let e = StereoImages::load_sbs(&p).unwrap_err().to_string();
+        assert!(e.contains("photopose-corrupt") && e.starts_with("cannot read image"), "{e}");
+        std::fs::remove_file(&p).unwrap();
+    }
+
+    #[test]
+    fn colour_plane_codes_pixels() {
+        let img = RgbImage::from_fn(2, 1, |x, _| if x == 0 { Rgb([0, 0, 255]) } else { Rgb([250, 250, 250]) });
+        let p = ColorPlane::from_rgb(&img, &ColorClasses::default());
+        assert_eq!(p.code, vec![120, crate::color::WHITE]);
+        assert_eq!(p.hue, vec![120, 0]);
+    }
+}

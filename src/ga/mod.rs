@@ -1,0 +1,215 @@
+//! The genetic algorithm over Φ = (x, y, z, ε1, ε2, ε3, α, k) (paper §4).
+//!
+//! Genes live in `[0, 1]` and are decoded through the [`Bounds`] of the search space.
+//! [`paper`] is the literal binary GA; [`robust`] the default coarse-to-fine search.
+//! Both evaluate only new individuals, in parallel, from a seeded RNG.
+
+pub mod paper;
+pub mod robust;
+
+use nalgebra::Vector3;
+
+use crate::config::SearchSpace;
+use crate::fitness::{Fitness, PointSet, Scorer};
+use crate::frame::{FrameLevel, FramePyramid};
+use crate::model::PhotoModel;
+use crate::pose::PoseSize;
+
+/// Number of genes in a chromosome.
+pub const GENES: usize = 8;
+/// Normalised genes, each in `[0, 1]`.
+pub type Genes = [f64; GENES];
+
+/// Maps normalised genes to physical values: x, y, z in mm, ε in [−1, 1], α from the
+/// size range (`α = L_P / L`), k from the aspect range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bounds {
+    pub lo: Genes,
+    pub hi: Genes,
+    /// Decode α geometrically (uniform in log size) instead of linearly.
+    pub log_alpha: bool,
+}
+
+impl Bounds {
+    pub fn new(search: &SearchSpace, model: &PhotoModel, log_alpha: bool) -> Self {
+        let alpha = [model.l_p / search.size_mm[1], model.l_p / search.size_mm[0]];
+        let lo = [search.x_mm[0], search.y_mm[0], search.z_mm[0], -1.0, -1.0, -1.0, alpha[0], search.aspect_k[0]];
+        let hi = [search.x_mm[1], search.y_mm[1], search.z_mm[1], 1.0, 1.0, 1.0, alpha[1], search.aspect_k[1]];
+        Self { lo, hi, log_alpha }
+    }
+
+    pub fn decode(&self, g: &Genes) -> PoseSize {
+        let lin = |i: usize| self.lo[i] + g[i] * (self.hi[i] - self.lo[i]);
+        let alpha = if self.log_alpha {
+            self.lo[6] * (self.hi[6] / self.lo[6]).powf(g[6])
+        } else {
+            lin(6)
+        };
+        PoseSize {
+            position: Vector3::new(lin(0), lin(1), lin(2)),
+            eps: Vector3::new(lin(3), lin(4), lin(5)),
+            alpha,
+            k: lin(7),
+        }
+    }
+
+    /// Inverse of [`Bounds::decode`] (clamped into the search space).
+    pub fn encode(&self, p: &PoseSize) -> Genes {
+        let vals = [p.position.x, p.position.y, p.position.z, p.eps.x, p.eps.y, p.eps.z, p.alpha, p.k];
+        let mut g = [0.0; GENES];
+        for i in 0..GENES {
+            g[i] = if i == 6 && self.log_alpha {
+                (vals[i] / self.lo[i]).ln() / (self.hi[i] / self.lo[i]).ln()
+            } else {
+                (vals[i] - self.lo[i]) / (self.hi[i] - self.lo[i])
+            }
+            .clamp(0.0, 1.0);
+        }
+        g
+    }
+}
+
+/// One frame's search problem: the scorer, the per-frame colour pyramid and the
+/// model's points at each level.
+pub struct Problem<'a> {
+    pub scorer: &'a Scorer,
+    pub pyramid: &'a FramePyramid,
+    /// Points used on each pyramid level (coarser levels use a sub-grid).
+    pub points: Vec<PointSet>,
+    pub bounds: Bounds,
+    pub threads: usize,
+}
+
+impl<'a> Problem<'a> {
+    /// `stride_per_level` thins the model grid by `2^level` on coarse levels when true.
+    pub fn new(scorer: &'a Scorer, pyramid: &'a FramePyramid, model: &PhotoModel, bounds: Bounds, threads: usize, thin: bool) -> Self {
+        let points = (0..pyramid.levels.len())
+            .map(|l| PointSet::from_model(model, &scorer.params, if thin { 1 << l } else { 1 }))
+            .collect();
+        let threads = if threads == 0 {
+            std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+        } else {
+            threads
+        };
+        Self {
+            scorer,
+            pyramid,
+            points,
+            bounds,
+            threads,
+        }
+    }
+
+    fn level(&self, l: usize) -> &FrameLevel {
+        &self.pyramid.levels[l.min(self.pyramid.levels.len() - 1)]
+    }
+
+    /// Fitness of one candidate on level `l`.
+    pub fn evaluate(&self, l: usize, g: &Genes) -> Fitness {
+        let l = l.min(self.points.len() - 1);
+        self.scorer.evaluate(&self.points[l], self.level(l), &self.bounds.decode(g))
+    }
+
+    /// Fitness of many candidates on level `l`, split across the worker threads.
+    pub fn evaluate_batch(&self, l: usize, genes: &[Genes], out: &mut [Fitness]) {
+        let chunk = genes.len().div_ceil(self.threads.max(1)).max(8);
+        if self.threads <= 1 || genes.len() <= chunk {
+            for (g, f) in genes.iter().zip(out.iter_mut()) {
+                *f = self.evaluate(l, g);
+            }
+            return;
+        }
+        std::thread::scope(|s| {
+            for (gs, fs) in genes.chunks(chunk).zip(out.chunks_mut(chunk)) {
+                s.spawn(move || {
+                    for (g, f) in gs.iter().zip(fs.iter_mut()) {
+                        *f = self.evaluate(l, g);
+                    }
+                });
+            }
+        });
+    }
+}
+
+/// The best individual at one generation (for the paper's Table 2).
+#[derive(Debug, Clone, Copy)]
+pub struct Snapshot {
+    pub generation: usize,
+    pub best: PoseSize,
+    /// Fitness at full resolution.
+    pub fitness: Fitness,
+}
+
+/// Result of a one-shot estimate.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub best: PoseSize,
+    pub fitness: Fitness,
+    pub generations: usize,
+    pub evaluations: usize,
+    pub snapshots: Vec<Snapshot>,
+}
+
+/// Generations at which the best individual is reported: 100, 500 and the last.
+pub fn snapshot_generations(total: usize) -> Vec<usize> {
+    let mut v: Vec<usize> = [100, 500].into_iter().filter(|&g| g < total).collect();
+    v.push(total);
+    v
+}
+
+/// Indices of `fitness` sorted best first (NaN-safe).
+pub(crate) fn rank(fitness: &[Fitness], order: &mut Vec<usize>) {
+    order.clear();
+    order.extend(0..fitness.len());
+    order.sort_by(|&a, &b| fitness[b].f.total_cmp(&fitness[a].f));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{InnerPoint, PixelBox};
+
+    fn model() -> PhotoModel {
+        PhotoModel {
+            format: "photopose-model".into(),
+            version: 1,
+            photo: "p".into(),
+            bbox: PixelBox { x: 0, y: 0, w: 200, h: 100 },
+            l_p: 200.0,
+            b_p: 100.0,
+            step_px: 10.0,
+            outer_width_px: 10.0,
+            mean_hue: 0.0,
+            center_class: "chromatic".into(),
+            inner: vec![InnerPoint { x: 0.0, y: 0.0, h: 0, s: 0, v: 0 }],
+            outer: vec![],
+        }
+    }
+
+    #[test]
+    fn bounds_decode_and_encode_round_trip() {
+        let search = SearchSpace {
+            x_mm: [-300.0, 300.0],
+            y_mm: [-300.0, 300.0],
+            z_mm: [300.0, 1200.0],
+            size_mm: [20.0, 400.0],
+            aspect_k: [0.5, 2.0],
+        };
+        for log_alpha in [false, true] {
+            let b = Bounds::new(&search, &model(), log_alpha);
+            let lo = b.decode(&[0.0; GENES]);
+            let hi = b.decode(&[1.0; GENES]);
+            assert_eq!(lo.position.z, 300.0);
+            assert_eq!(hi.position.z, 1200.0);
+            // α from L range: L = 400 → α = 0.5, L = 20 → α = 10.
+            assert!((lo.alpha - 0.5).abs() < 1e-12 && (hi.alpha - 10.0).abs() < 1e-12);
+            let g = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8];
+            let back = b.encode(&b.decode(&g));
+            for i in 0..GENES {
+                assert!((back[i] - g[i]).abs() < 1e-12);
+            }
+        }
+        assert_eq!(snapshot_generations(1000), vec![100, 500, 1000]);
+        assert_eq!(snapshot_generations(300), vec![100, 300]);
+    }
+}

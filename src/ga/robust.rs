@@ -1,0 +1,259 @@
+//! The default search: a real-valued GA run coarse to fine over the image pyramid.
+//!
+//! On the coarsest level several independent populations (restarts) explore the whole
+//! search space with random immigrants, on blurred images where the fitness peak is
+//! wide; the best individuals continue on finer levels with shrinking mutation, and a
+//! final (1+λ) evolution strategy refines the best at full resolution.
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use super::{rank, snapshot_generations, Genes, Outcome, Problem, Snapshot, GENES};
+use crate::config::{GaSettings, RobustSettings};
+use crate::fitness::Fitness;
+
+/// Mutation step (normalised gene units) at the start of full-resolution generations;
+/// each coarser level multiplies it by 3.
+const SIGMA_FULL: f64 = 0.006;
+
+/// A standard normal sample (Box–Muller).
+fn normal(rng: &mut impl Rng) -> f64 {
+    let u1: f64 = rng.random::<f64>().max(1e-300);
+    let u2: f64 = rng.random();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// Gaussian mutation of about two genes (at least one), clamped to `[0, 1]`.
+pub fn mutate(g: &mut Genes, sigma: f64, rng: &mut impl Rng) {
+    let forced = rng.random_range(0..GENES);
+    for (i, v) in g.iter_mut().enumerate() {
+        if i == forced || rng.random::<f64>() < 2.0 / GENES as f64 {
+            *v = (*v + sigma * normal(rng)).clamp(0.0, 1.0);
+        }
+    }
+}
+
+/// Blend crossover (BLX-0.25): each gene drawn between and slightly beyond the parents'.
+pub fn blend(a: &Genes, b: &Genes, rng: &mut impl Rng) -> Genes {
+    std::array::from_fn(|i| {
+        let u = rng.random_range(-0.25..1.25);
+        (a[i] + u * (b[i] - a[i])).clamp(0.0, 1.0)
+    })
+}
+
+/// One population: genes and their fitness, sorted best first after [`Population::sort`].
+struct Population {
+    genes: Vec<Genes>,
+    fit: Vec<Fitness>,
+}
+
+impl Population {
+    fn random(n: usize, rng: &mut impl Rng) -> Self {
+        Self {
+            genes: (0..n).map(|_| std::array::from_fn(|_| rng.random())).collect(),
+            fit: vec![Fitness::default(); n],
+        }
+    }
+
+    fn sort(&mut self, order: &mut Vec<usize>) {
+        rank(&self.fit, order);
+        self.genes = order.iter().map(|&i| self.genes[i]).collect();
+        self.fit = order.iter().map(|&i| self.fit[i]).collect();
+    }
+
+    /// Replaces everything after the first `keep` by children of the survivors.
+    fn breed(&mut self, keep: usize, ga: &GaSettings, sigma: f64, immigrants: f64, rng: &mut impl Rng) {
+        for i in keep..self.genes.len() {
+            self.genes[i] = if rng.random::<f64>() < immigrants {
+                std::array::from_fn(|_| rng.random())
+            } else {
+                let a = self.genes[rng.random_range(0..keep)];
+                let mut child = if rng.random::<f64>() < ga.crossover_rate {
+                    blend(&a, &self.genes[rng.random_range(0..keep)], rng)
+                } else {
+                    a
+                };
+                mutate(&mut child, sigma, rng);
+                child
+            };
+        }
+    }
+}
+
+/// Generations per level, coarsest first, summing to `total`.
+fn schedule(total: usize, share: &[f64]) -> Vec<usize> {
+    let sum: f64 = share.iter().sum();
+    let mut out: Vec<usize> = share.iter().map(|s| (total as f64 * s / sum).round() as usize).collect();
+    let assigned: usize = out.iter().take(out.len() - 1).sum();
+    if let Some(last) = out.last_mut() {
+        *last = total.saturating_sub(assigned);
+    }
+    out
+}
+
+/// Runs the coarse-to-fine GA for `generations` generations, then the refinement.
+pub fn run(
+    problem: &Problem,
+    ga: &GaSettings,
+    robust: &RobustSettings,
+    generations: usize,
+    seed: u64,
+    progress: &mut dyn FnMut(usize),
+) -> Outcome {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let n = ga.population;
+    let keep = ((n as f64 * ga.survivors).round() as usize).clamp(1, n - 1);
+    let levels = problem.pyramid.levels.len().min(robust.pyramid_levels);
+    let plan = schedule(generations, &robust.level_share[robust.level_share.len() - levels..]);
+    let coarsest = levels - 1;
+    let mut pops: Vec<Population> = (0..robust.restarts).map(|_| Population::random(n, &mut rng)).collect();
+    let mut order = Vec::with_capacity(n * robust.restarts);
+    let mut batch: Vec<Genes> = Vec::with_capacity(n * robust.restarts);
+    let mut batch_fit: Vec<Fitness> = Vec::with_capacity(n * robust.restarts);
+    let mut evaluations = 0;
+    let marks = snapshot_generations(generations);
+    let mut snapshots = Vec::new();
+    let mut generation = 0;
+
+    // Evaluates individuals `from..` of every population as one parallel batch.
+    let mut evaluate = |pops: &mut [Population], level: usize, from: usize, evaluations: &mut usize| {
+        batch.clear();
+        for p in pops.iter() {
+            batch.extend_from_slice(&p.genes[from..]);
+        }
+        batch_fit.clear();
+        batch_fit.resize(batch.len(), Fitness::default());
+        problem.evaluate_batch(level, &batch, &mut batch_fit);
+        *evaluations += batch.len();
+        let mut k = 0;
+        for p in pops.iter_mut() {
+            for f in p.fit[from..].iter_mut() {
+                *f = batch_fit[k];
+                k += 1;
+            }
+        }
+    };
+
+    for (step, &gens) in plan.iter().enumerate() {
+        let level = coarsest - step;
+        evaluate(&mut pops, level, 0, &mut evaluations);
+        let sigma0 = SIGMA_FULL * 3f64.powi(level as i32);
+        let immigrants = if level == coarsest && levels > 1 { robust.immigrants } else { 0.0 };
+        for g in 0..gens {
+            let sigma = sigma0 * (1.0 - 0.66 * g as f64 / gens.max(1) as f64);
+            for p in pops.iter_mut() {
+                p.sort(&mut order);
+                p.breed(keep, ga, sigma, immigrants, &mut rng);
+            }
+            evaluate(&mut pops, level, keep, &mut evaluations);
+            generation += 1;
+            if marks.contains(&generation) {
+                let (pi, ii) = best_of(&pops);
+                let best = pops[pi].genes[ii];
+                snapshots.push(Snapshot {
+                    generation,
+                    best: problem.bounds.decode(&best),
+                    fitness: problem.evaluate(0, &best),
+                });
+            }
+            progress(generation);
+        }
+        if step == 0 && pops.len() > 1 {
+            // The restarts merge: the best n individuals of all of them continue.
+            let mut all = Population {
+                genes: pops.iter().flat_map(|p| p.genes.iter().copied()).collect(),
+                fit: pops.iter().flat_map(|p| p.fit.iter().copied()).collect(),
+            };
+            all.sort(&mut order);
+            all.genes.truncate(n);
+            all.fit.truncate(n);
+            pops = vec![all];
+        }
+    }
+    let (pi, ii) = best_of(&pops);
+    let start = pops[pi].genes[ii];
+    let (best, fitness, used) = refine(problem, start, robust.refine_evaluations, &mut rng);
+    evaluations += used;
+    if let Some(last) = snapshots.last_mut() {
+        last.best = problem.bounds.decode(&best);
+        last.fitness = fitness;
+    }
+    Outcome {
+        best: problem.bounds.decode(&best),
+        fitness,
+        generations,
+        evaluations,
+        snapshots,
+    }
+}
+
+fn best_of(pops: &[Population]) -> (usize, usize) {
+    let mut best = (0, 0);
+    let mut f = f64::NEG_INFINITY;
+    for (pi, p) in pops.iter().enumerate() {
+        for (ii, fit) in p.fit.iter().enumerate() {
+            if fit.f > f {
+                f = fit.f;
+                best = (pi, ii);
+            }
+        }
+    }
+    best
+}
+
+/// (1+λ) evolution strategy at full resolution with a success-based step size.
+fn refine(problem: &Problem, start: Genes, budget: usize, rng: &mut impl Rng) -> (Genes, Fitness, usize) {
+    let mut best = start;
+    let mut best_fit = problem.evaluate(0, &best);
+    let lambda = (4 * problem.threads).max(8);
+    let mut sigma = SIGMA_FULL / 2.0;
+    let mut used = 1;
+    let mut kids = vec![[0.0; GENES]; lambda];
+    let mut fit = vec![Fitness::default(); lambda];
+    while used + lambda <= budget {
+        for k in kids.iter_mut() {
+            *k = best;
+            for v in k.iter_mut() {
+                *v = (*v + sigma * normal(rng)).clamp(0.0, 1.0);
+            }
+        }
+        problem.evaluate_batch(0, &kids, &mut fit);
+        used += lambda;
+        let (i, f) = fit.iter().enumerate().fold((0, fit[0]), |acc, (i, f)| if f.f > acc.1.f { (i, *f) } else { acc });
+        if f.f > best_fit.f {
+            best = kids[i];
+            best_fit = f;
+            sigma = (sigma * 1.3).min(SIGMA_FULL * 2.0);
+        } else {
+            sigma = (sigma * 0.8).max(SIGMA_FULL / 30.0);
+        }
+    }
+    (best, best_fit, used)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schedule_splits_generations_by_share() {
+        assert_eq!(schedule(1000, &[0.5, 0.25, 0.25]), vec![500, 250, 250]);
+        assert_eq!(schedule(7, &[1.0, 1.0]), vec![4, 3]);
+        assert_eq!(schedule(10, &[1.0]), vec![10]);
+    }
+
+    #[test]
+    fn operators_stay_in_the_unit_cube() {
+        let mut rng = StdRng::seed_from_u64(9);
+        for _ in 0..1000 {
+            let a: Genes = std::array::from_fn(|_| rng.random());
+            let b: Genes = std::array::from_fn(|_| rng.random());
+            let mut c = blend(&a, &b, &mut rng);
+            mutate(&mut c, 0.5, &mut rng);
+            assert!(c.iter().all(|v| (0.0..=1.0).contains(v)));
+        }
+        let mut same = [0.5; GENES];
+        mutate(&mut same, 0.01, &mut rng);
+        assert!(same.iter().any(|&v| v != 0.5), "at least one gene mutates");
+    }
+}

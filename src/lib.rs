@@ -1,0 +1,22 @@
+//! photopose: the 6-DoF pose and size of an object seen by a ZED 2i stereo camera,
+//! found from one ordinary photo of an object of the same category with the variable
+//! photo-model method (Tian & Wang, Sensors 2023).
+//!
+//! Data flows: [`calibration`] + [`config`] → [`camera`] rig; [`model`] samples the photo;
+//! [`frame`] prepares each stereo frame's colour data; [`fitness`] scores a candidate
+//! [`pose`]; [`ga`] searches; [`estimate`] runs it end to end; [`render`] is the
+//! synthetic camera; [`overlay`] draws the result.
+
+pub mod calibration;
+pub mod camera;
+pub mod cli;
+pub mod color;
+pub mod config;
+pub mod estimate;
+pub mod fitness;
+pub mod frame;
+pub mod ga;
+pub mod model;
+pub mod overlay;
+pub mod pose;
+// pub mod render;

@@ -1,0 +1,43 @@
+//! The `photopose` binary: subcommands over the library.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use photopose::cli;
+
+#[derive(Parser, Debug)]
+#[command(name = "photopose", version, about = "6-DoF pose and size of an object from one photo and a ZED 2i stereo camera")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Build a photo-model from a photo and the object's box.
+    Model(cli::model::ModelArgs),
+    /// Estimate pose and size from one stereo frame (one-shot GA).
+    Estimate(cli::estimate::EstimateArgs),
+    // /// Render a synthetic stereo frame of a photo card in a cluttered scene.
+    // Render(cli::render::RenderArgs),
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Model(a) => cli::model::run(a),
+        Command::Estimate(a) => cli::estimate::run(a),
+        // Command::Render(a) => cli::render::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,380 @@
+//! The photo-model (paper §3.1): sampling points on a regular grid of one photo's box.
+//! Inner points store their HSV colour; outer points form a strip around the box;
+//! `H̄_in` is the mean hue of a central rectangle. Saved as versioned JSON.
+
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+use serde::{Deserialize, Serialize};
+
+use crate::color::{circular_mean_hue, is_chromatic, rgb_to_hsv, ColorClasses, BLACK, GRAY, WHITE};
+use crate::config::ModelSettings;
+
+/// File format tag and version written into every model file.
+pub const FORMAT: &str = "photopose-model";
+pub const VERSION: u32 = 1;
+
+/// A problem building, reading or writing a photo-model.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    #[error("{path}: box {x},{y},{w},{h} does not lie inside the {width}x{height} photo")]
+    BoxOutside {
+        path: PathBuf,
+        x: i64,
+        y: i64,
+        w: i64,
+        h: i64,
+        width: u32,
+        height: u32,
+    },
+    #[error("{path}: box {w}x{h} is too small (at least 8x8 pixels)")]
+    BoxTooSmall { path: PathBuf, w: i64, h: i64 },
+    #[error("cannot read {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot write {path}: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: not a photopose model: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("{path}: model format version {found} is not supported (this build reads {VERSION})")]
+    Version { path: PathBuf, found: u32 },
+    #[error("{path}: model has {problem}")]
+    Invalid { path: PathBuf, problem: String },
+}
+
+/// A box in photo pixels, `(x, y)` its top-left corner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PixelBox {
+    pub x: u32,
+    pub y: u32,
+    pub w: u32,
+    pub h: u32,
+}
+
+/// An inner sampling point: position relative to the box centre (photo pixels) and colour.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(from = "[f64; 5]", into = "[f64; 5]")]
+pub struct InnerPoint {
+    pub x: f64,
+    pub y: f64,
+    pub h: u8,
+    pub s: u8,
+    pub v: u8,
+}
+
+impl From<[f64; 5]> for InnerPoint {
+    fn from(a: [f64; 5]) -> Self {
+        let byte = |v: f64| v.clamp(0.0, 255.0) as u8;
+        Self {
+            x: a[0],
+            y: a[1],
+            h: byte(a[2]).min(179),
+            s: byte(a[3]),
+            v: byte(a[4]),
+        }
+    }
+}
+
+impl From<InnerPoint> for [f64; 5] {
+    fn from(p: InnerPoint) -> Self {
+        [p.x, p.y, p.h as f64, p.s as f64, p.v as f64]
+    }
+}
+
+/// The photo-model as stored on disk.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PhotoModel {
+    pub format: String,
+    pub version: u32,
+    /// The source photo as given to `photopose model`.
+    pub photo: String,
+    #[serde(rename = "box")]
+    pub bbox: PixelBox,
+    /// Model frame size `L_P × B_P`, pixels.
+    pub l_p: f64,
+    pub b_p: f64,
+    pub step_px: f64,
+    pub outer_width_px: f64,
+    /// Mean hue `H̄_in` of the central rectangle (OpenCV units, circular mean).
+    pub mean_hue: f64,
+    /// Colour class that dominates the central rectangle: "chromatic", "black", "gray" or "white".
+    pub center_class: String,
+    /// Inner points `[x, y, H, S, V]`, x right and y down from the box centre.
+    pub inner: Vec<InnerPoint>,
+    /// Outer strip points `[x, y]` from the box centre.
+    pub outer: Vec<[f64; 2]>,
+}
+
+impl PhotoModel {
+    /// Samples `photo` inside `bbox` (`path` only names the photo in messages and the file).
+    pub fn build(
+        photo: &RgbImage,
+        path: &Path,
+        bbox: [i64; 4],
+        settings: &ModelSettings,
+        classes: &ColorClasses,
+    ) -> Result<PhotoModel, ModelError> {
+        let [x, y, w, h] = bbox;
+        let (pw, ph) = photo.dimensions();
+        if x < 0 || y < 0 || w <= 0 || h <= 0 || x + w > pw as i64 || y + h > ph as i64 {
+            return Err(ModelError::BoxOutside {
+                path: path.to_path_buf(),
+                x,
+                y,
+                w,
+                h,
+                width: pw,
+                height: ph,
+            });
+        }
+        if w < 8 || h < 8 {
+            return Err(ModelError::BoxTooSmall {
+                path: path.to_path_buf(),
+                w,
+                h,
+            });
+        }
+        let (wf, hf) = (w as f64, h as f64);
+        let step = if settings.step_px > 0.0 {
+            settings.step_px
+        } else {
+            (wf * hf / settings.target_points as f64).sqrt().max(1.0)
+        };
+        let outer_width = if settings.outer_width_px > 0.0 {
+            settings.outer_width_px
+        } else {
+            0.15 * wf.min(hf)
+        };
+        let (cx, cy) = (x as f64 + wf / 2.0, y as f64 + hf / 2.0);
+        let grid = |len: f64| -> Vec<f64> {
+            let n = (len / step).floor().max(1.0) as usize;
+            let start = -(n as f64 - 1.0) * step / 2.0;
+            (0..n).map(|i| start + i as f64 * step).collect()
+        };
+        let mut inner = Vec::new();
+        for &py in &grid(hf) {
+            for &px in &grid(wf) {
+                let (r, g, b) = mean_rgb(photo, cx + px, cy + py);
+                let (hh, s, v) = rgb_to_hsv(r, g, b);
+                inner.push(InnerPoint { x: px, y: py, h: hh, s, v });
+            }
+        }
+        // The outer strip continues the grid beyond the box, up to `outer_width` away.
+        let (half_w, half_h) = (wf / 2.0, hf / 2.0);
+        let reach_x = ((half_w + outer_width) / step).floor() as i64;
+        let reach_y = ((half_h + outer_width) / step).floor() as i64;
+        let mut outer = Vec::new();
+        for j in -reach_y..=reach_y {
+            for i in -reach_x..=reach_x {
+                let (px, py) = (i as f64 * step, j as f64 * step);
+                let dx = px.abs() - half_w;
+                let dy = py.abs() - half_h;
+                let outside = dx > step * 0.5 || dy > step * 0.5;
+                if outside && dx <= outer_width && dy <= outer_width {
+                    outer.push([px, py]);
+                }
+            }
+        }
+        let (fx, fy) = (settings.center_fraction * half_w, settings.center_fraction * half_h);
+        let center: Vec<u8> = inner
+            .iter()
+            .filter(|p| p.x.abs() <= fx && p.y.abs() <= fy)
+            .map(|p| classes.code(p.h, p.s, p.v))
+            .collect();
+        let (mean_hue, center_class) = center_colour(&center);
+        Ok(PhotoModel {
+            format: FORMAT.into(),
+            version: VERSION,
+            photo: path.display().to_string(),
+            bbox: PixelBox {
+                x: x as u32,
+                y: y as u32,
+                w: w as u32,
+                h: h as u32,
+            },
+            l_p: wf,
+            b_p: hf,
+            step_px: step,
+            outer_width_px: outer_width,
+            mean_hue,
+            center_class: center_class.into(),
+            inner,
+            outer,
+        })
+    }
+
+    /// Reads and checks a model file.
+    pub fn load(path: &Path) -> Result<PhotoModel, ModelError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| ModelError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        if value.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
+            return Err(ModelError::Parse {
+                path: path.to_path_buf(),
+                message: format!("missing \"format\": \"{FORMAT}\""),
+            });
+        }
+        let version = value.get("version").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
+        if version != VERSION {
+            return Err(ModelError::Version {
+                path: path.to_path_buf(),
+                found: version,
+            });
+        }
+        let model: PhotoModel = serde_json::from_value(value).map_err(|e| ModelError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        let invalid = |problem: &str| ModelError::Invalid {
+            path: path.to_path_buf(),
+            problem: problem.into(),
+        };
+        if model.inner.is_empty() {
+            return Err(invalid("no inner points"));
+        }
+        if !(model.l_p > 0.0 && model.b_p > 0.0 && model.l_p.is_finite() && model.b_p.is_finite()) {
+            return Err(invalid("a non-positive box size L_P × B_P"));
+        }
+        let finite = model.inner.iter().all(|p| p.x.is_finite() && p.y.is_finite())
+            && model.outer.iter().all(|p| p[0].is_finite() && p[1].is_finite())
+            && model.mean_hue.is_finite();
+        if !finite {
+            return Err(invalid("a non-finite number"));
+        }
+        Ok(model)
+    }
+
+    /// Writes the model as JSON.
+    pub fn save(&self, path: &Path) -> Result<(), ModelError> {
+        let text = serde_json::to_string(self).map_err(|e| ModelError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        std::fs::write(path, text).map_err(|source| ModelError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// The colour code the mean colour of the central rectangle has: its hue when
+    /// chromatic, else the achromatic class code.
+    pub fn center_code(&self) -> u8 {
+        match self.center_class.as_str() {
+            "black" => BLACK,
+            "gray" => GRAY,
+            "white" => WHITE,
+            _ => self.mean_hue.round() as u8 % 180,
+        }
+    }
+}
+
+/// Mean RGB of the 3×3 neighbourhood of a photo position (clamped to the photo).
+fn mean_rgb(photo: &RgbImage, x: f64, y: f64) -> (u8, u8, u8) {
+    let (w, h) = photo.dimensions();
+    let (xi, yi) = (x.floor() as i64, y.floor() as i64);
+    let mut acc = [0u32; 3];
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            let px = (xi + dx).clamp(0, w as i64 - 1) as u32;
+            let py = (yi + dy).clamp(0, h as i64 - 1) as u32;
+            let p = photo.get_pixel(px, py).0;
+            for c in 0..3 {
+                acc[c] += p[c] as u32;
+            }
+        }
+    }
+    ((acc[0] / 9) as u8, (acc[1] / 9) as u8, (acc[2] / 9) as u8)
+}
+
+/// `H̄_in` and the dominant class of the central rectangle's colour codes.
+fn center_colour(codes: &[u8]) -> (f64, &'static str) {
+    let chromatic: Vec<u8> = codes.iter().copied().filter(|&c| is_chromatic(c)).collect();
+    let count = |k: u8| codes.iter().filter(|&&c| c == k).count();
+    let achromatic = [(count(BLACK), "black"), (count(GRAY), "gray"), (count(WHITE), "white")];
+    let (best_n, best_name) = achromatic.iter().copied().max_by_key(|a| a.0).unwrap_or((0, "gray"));
+    let mean = circular_mean_hue(chromatic.iter().copied()).unwrap_or(0.0);
+    if chromatic.len() >= best_n {
+        (mean, "chromatic")
+    } else {
+        (mean, best_name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::Rgb;
+
+    fn settings(step: f64) -> ModelSettings {
+        ModelSettings {
+            step_px: step,
+            outer_width_px: 10.0,
+            ..ModelSettings::default()
+        }
+    }
+
+    #[test]
+    fn grid_covers_box_and_strip_surrounds_it() {
+        let mut photo = RgbImage::from_pixel(100, 80, Rgb([20, 200, 20]));
+        for y in 20..60 {
+            for x in 30..70 {
+                photo.put_pixel(x, y, Rgb([220, 30, 30]));
+            }
+        }
+        let m = PhotoModel::build(&photo, Path::new("p.png"), [30, 20, 40, 40], &settings(5.0), &ColorClasses::default())
+            .unwrap();
+        assert_eq!(m.inner.len(), 64);
+        assert_eq!((m.l_p, m.b_p), (40.0, 40.0));
+        // Points are centred on the box: from −17.5 to 17.5.
+        assert!(m.inner.iter().all(|p| p.x.abs() <= 17.5 && p.y.abs() <= 17.5));
+        assert!(m.inner.iter().all(|p| p.h == 0 && p.s > 200));
+        assert_eq!(m.center_class, "chromatic");
+        assert!(m.mean_hue < 1.0 || m.mean_hue > 179.0);
+        assert!(!m.outer.is_empty());
+        for p in &m.outer {
+            let out = p[0].abs() > 20.0 || p[1].abs() > 20.0;
+            let near = p[0].abs() <= 30.0 && p[1].abs() <= 30.0;
+            assert!(out && near, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn box_outside_photo_is_an_error_naming_the_photo() {
+        let photo = RgbImage::new(50, 50);
+        let e = PhotoModel::build(&photo, Path::new("pear.jpg"), [30, 30, 40, 10], &settings(4.0), &ColorClasses::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pear.jpg") && e.contains("does not lie inside the 50x50 photo"), "{e}");
+    }
+
+    #[test]
+    fn save_and_load_round_trip_and_reject_bad_files() {
+        let photo = RgbImage::from_pixel(64, 64, Rgb([128, 128, 128]));
+        let m = PhotoModel::build(&photo, Path::new("g.png"), [8, 8, 48, 40], &settings(4.0), &ColorClasses::default())
+            .unwrap();
+        assert_eq!(m.center_class, "gray");
+        let dir = std::env::temp_dir().join(format!("photopose-model-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("g.model");
+        m.save(&path).unwrap();
+        assert_eq!(PhotoModel::load(&path).unwrap(), m);
+        let bad = dir.join("bad.model");
+        std::fs::write(&bad, "{\"format\": \"photopose-model\", \"version\": 7}").unwrap();
+        let e = PhotoModel::load(&bad).unwrap_err().to_string();
+        assert!(e.contains("bad.model") && e.contains("version 7"), "{e}");
+        std::fs::write(&bad, "not json").unwrap();
+        let e = PhotoModel::load(&bad).unwrap_err().to_string();
+        assert!(e.contains("bad.model") && e.contains("not a photopose model"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

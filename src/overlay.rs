@@ -1,0 +1,71 @@
+//! Pictures of a result (the paper's Fig. 9): the best model's inner points, outer
+//! strip and outline projected onto the left and right images.
+
+use image::{Rgb, RgbImage};
+
+
+use crate::fitness::{PointSet, ProjectedPoints, Scorer};
+use crate::frame::{FrameLevel, StereoImages};
+use crate::model::PhotoModel;
+use crate::pose::PoseSize;
+
+const INNER: Rgb<u8> = Rgb([40, 255, 40]);
+const OUTER: Rgb<u8> = Rgb([255, 40, 255]);
+const OUTLINE: Rgb<u8> = Rgb([255, 255, 0]);
+
+/// The side-by-side frame with the candidate's projection drawn on both eyes.
+pub fn draw(images: &StereoImages, scorer: &Scorer, level: &FrameLevel, model: &PhotoModel, cand: &PoseSize) -> RgbImage {
+    let mut out = images.to_sbs();
+    let points = PointSet::from_model(model, &scorer.params, 1);
+    let projected = scorer.project_points(&points, level, cand);
+    let outline = outline_points(model);
+    let corners = scorer.project_points(&outline, level, cand);
+    let eye_w = images.left.width() as f64;
+    for (eye, (pts, line)) in projected.iter().zip(&corners).enumerate() {
+        let dx = eye as f64 * eye_w;
+        draw_dots(&mut out, pts, dx, eye_w);
+        for p in line.inner.iter().flatten() {
+            dot(&mut out, p.x + dx, p.y, 0, OUTLINE, dx, eye_w);
+        }
+    }
+    out
+}
+
+fn draw_dots(img: &mut RgbImage, pts: &ProjectedPoints, dx: f64, eye_w: f64) {
+    for p in pts.outer.iter().flatten() {
+        dot(img, p.x + dx, p.y, 1, OUTER, dx, eye_w);
+    }
+    for p in pts.inner.iter().flatten() {
+        dot(img, p.x + dx, p.y, 1, INNER, dx, eye_w);
+    }
+}
+
+/// Densely sampled box border as "inner" points, so its projection is a curve.
+fn outline_points(model: &PhotoModel) -> PointSet {
+    let (hw, hh) = (model.l_p / 2.0, model.b_p / 2.0);
+    let mut set = PointSet::default();
+    let n = 400;
+    for i in 0..=n {
+        let t = i as f64 / n as f64;
+        for (x, y) in [(-hw + t * 2.0 * hw, -hh), (-hw + t * 2.0 * hw, hh), (-hw, -hh + t * 2.0 * hh), (hw, -hh + t * 2.0 * hh)] {
+            set.inner_x.push(x);
+            set.inner_y.push(y);
+            set.inner_code.push(0);
+        }
+    }
+    set
+}
+
+/// A square dot of half-width `r` clipped to one eye `[x0, x0 + w)`.
+fn dot(img: &mut RgbImage, x: f64, y: f64, r: i64, colour: Rgb<u8>, x0: f64, w: f64) {
+    let (cx, cy) = (x.round() as i64, y.round() as i64);
+    for yy in cy - r..=cy + r {
+        for xx in cx - r..=cx + r {
+            let inside_eye = (xx as f64) >= x0 && (xx as f64) < x0 + w;
+            if inside_eye && yy >= 0 && (yy as u32) < img.height() && xx >= 0 && (xx as u32) < img.width() {
+                img.put_pixel(xx as u32, yy as u32, colour);
+            }
+        }
+    }
+}
+

@@ -1,0 +1,109 @@
+//! A candidate solution Φ = (x, y, z, ε1, ε2, ε3, α, k) of the paper's eq. 11: the
+//! model's pose in the hand frame and its pixel-to-millimetre ratios.
+
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+
+/// Pose and size of a photo-model in the hand frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseSize {
+    /// Model origin in the hand frame, mm.
+    pub position: Vector3<f64>,
+    /// Vector part (ε1, ε2, ε3) of the unit quaternion, scalar part `η = sqrt(1 − |ε|²)`.
+    pub eps: Vector3<f64>,
+    /// PM ratio along model x, pixels per mm.
+    pub alpha: f64,
+    /// Ratio factor, `β = α·k`.
+    pub k: f64,
+}
+
+impl PoseSize {
+    /// `β = α·k`, pixels per mm along model y.
+    pub fn beta(&self) -> f64 {
+        self.alpha * self.k
+    }
+
+    /// The rotation `H_R_M`; an `|ε| > 1` is projected onto the unit sphere (η = 0).
+    pub fn rotation(&self) -> UnitQuaternion<f64> {
+        let n2 = self.eps.norm_squared();
+        let (eps, eta) = if n2 > 1.0 {
+            (self.eps / n2.sqrt(), 0.0)
+        } else {
+            (self.eps, (1.0 - n2).sqrt())
+        };
+        UnitQuaternion::from_quaternion(Quaternion::new(eta, eps.x, eps.y, eps.z))
+    }
+
+    /// `H_T_M`: model coordinates → hand coordinates.
+    pub fn hand_from_model(&self) -> Isometry3<f64> {
+        Isometry3::from_parts(Translation3::from(self.position), self.rotation())
+    }
+
+    /// Model size `[L, B]` in mm for a photo box of `l_p × b_p` pixels (eq. 5).
+    pub fn size_mm(&self, l_p: f64, b_p: f64) -> [f64; 2] {
+        [l_p / self.alpha, b_p / self.beta()]
+    }
+
+    /// The candidate that places a `size_mm` model at `hand_from_model`.
+    pub fn from_pose(hand_from_model: &Isometry3<f64>, size_mm: [f64; 2], l_p: f64, b_p: f64) -> Self {
+        let [w, x, y, z] = wxyz(&hand_from_model.rotation);
+        let alpha = l_p / size_mm[0];
+        let beta = b_p / size_mm[1];
+        let _ = w;
+        Self {
+            position: hand_from_model.translation.vector,
+            eps: Vector3::new(x, y, z),
+            alpha,
+            k: beta / alpha,
+        }
+    }
+
+    /// The orientation as `[w, x, y, z]` with `w ≥ 0`.
+    pub fn orientation_wxyz(&self) -> [f64; 4] {
+        wxyz(&self.rotation())
+    }
+}
+
+/// A unit quaternion as `[w, x, y, z]` with `w ≥ 0` (the contract's output form).
+pub fn wxyz(q: &UnitQuaternion<f64>) -> [f64; 4] {
+    let s = if q.w < 0.0 { -1.0 } else { 1.0 };
+    [s * q.w, s * q.i, s * q.j, s * q.k]
+}
+
+/// Angle between two rotations, degrees.
+pub fn rotation_error_deg(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>) -> f64 {
+    a.angle_to(b).to_degrees()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn epsilon_gives_unit_quaternion_with_positive_scalar() {
+        let p = PoseSize {
+            position: Vector3::zeros(),
+            eps: Vector3::new(0.0, 0.0, (0.5f64).sqrt()),
+            alpha: 2.0,
+            k: 0.5,
+        };
+        // 90° about z: x axis goes to y.
+        let v = p.rotation() * Vector3::x();
+        assert!((v - Vector3::y()).norm() < 1e-12);
+        assert_eq!(p.size_mm(434.0, 494.0), [217.0, 494.0]);
+        let big = PoseSize {
+            eps: Vector3::new(2.0, 0.0, 0.0),
+            ..p
+        };
+        assert!((big.rotation().angle() - std::f64::consts::PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn from_pose_round_trips() {
+        let iso = Isometry3::new(Vector3::new(10.0, -20.0, 600.0), Vector3::new(0.3, -0.2, 2.5));
+        let p = PoseSize::from_pose(&iso, [80.0, 120.0], 200.0, 240.0);
+        assert!((p.hand_from_model().to_homogeneous() - iso.to_homogeneous()).norm() < 1e-9);
+        let s = p.size_mm(200.0, 240.0);
+        assert!((s[0] - 80.0).abs() < 1e-9 && (s[1] - 120.0).abs() < 1e-9);
+        assert!(p.orientation_wxyz()[0] >= 0.0);
+    }
+}
