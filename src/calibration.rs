@@ -33,12 +33,7 @@ pub enum Resolution {
 
 impl Resolution {
     /// All resolutions, largest first.
-    pub const ALL: [Resolution; 4] = [
-        Resolution::R2K,
-        Resolution::FHD,
-        Resolution::HD,
-        Resolution::VGA,
-    ];
+    pub const ALL: [Resolution; 4] = [Resolution::R2K, Resolution::FHD, Resolution::HD, Resolution::VGA];
 
     /// Image size of one eye, `(width, height)` in pixels.
     pub fn size(self) -> (u32, u32) {
@@ -52,9 +47,7 @@ impl Resolution {
 
     /// The resolution whose per-eye image is exactly `width`×`height`.
     pub fn from_size(width: u32, height: u32) -> Option<Resolution> {
-        Resolution::ALL
-            .into_iter()
-            .find(|r| r.size() == (width, height))
+        Resolution::ALL.into_iter().find(|r| r.size() == (width, height))
     }
 
     /// The name used in section and key suffixes: `"2K"`, `"FHD"`, `"HD"`, `"VGA"`.
@@ -91,11 +84,7 @@ pub enum CalibrationError {
     Read { path: PathBuf, reason: String },
     /// A line is neither `key=value`, `[SECTION]`, a comment nor blank.
     #[error("{}: line {line}: expected `key=value` or `[SECTION]`, found {text:?}", .path.display())]
-    Syntax {
-        path: PathBuf,
-        line: usize,
-        text: String,
-    },
+    Syntax { path: PathBuf, line: usize, text: String },
     /// A calibration value does not parse as a number.
     #[error("{}: line {line}: value {value:?} for key {key} is not a number", .path.display())]
     NotANumber {
@@ -212,9 +201,8 @@ fn is_stereo_key(key: &str) -> bool {
     if STEREO_KEYS[..3].contains(&key) {
         return true;
     }
-    key.split_once('_').is_some_and(|(base, suffix)| {
-        STEREO_KEYS.contains(&base) && Resolution::ALL.iter().any(|r| r.name() == suffix)
-    })
+    key.split_once('_')
+        .is_some_and(|(base, suffix)| STEREO_KEYS.contains(&base) && Resolution::ALL.iter().any(|r| r.name() == suffix))
 }
 
 fn is_known_section(name: &str) -> bool {
@@ -260,10 +248,7 @@ impl Calibration {
         let mut syntax_error = None;
         for (i, raw_line) in text.lines().enumerate() {
             let line = i + 1;
-            let content = raw_line
-                .find(['#', ';'])
-                .map_or(raw_line, |at| &raw_line[..at])
-                .trim();
+            let content = raw_line.find(['#', ';']).map_or(raw_line, |at| &raw_line[..at]).trim();
             if content.is_empty() {
                 continue;
             }
@@ -318,10 +303,7 @@ impl Calibration {
             let known = if sec == "STEREO" {
                 is_stereo_key(&e.key)
             } else {
-                is_known_section(sec)
-                    && INTRINSIC_KEYS
-                        .iter()
-                        .any(|k| k.eq_ignore_ascii_case(&e.key))
+                is_known_section(sec) && INTRINSIC_KEYS.iter().any(|k| k.eq_ignore_ascii_case(&e.key))
             };
             if !known {
                 continue;
@@ -359,13 +341,7 @@ impl Calibration {
                     first_line: first.line,
                 });
             }
-            values.insert(
-                slot,
-                Value {
-                    value,
-                    line: e.line,
-                },
-            );
+            values.insert(slot, Value { value, line: e.line });
         }
 
         // Pass 3: one rig per resolution calibrated for both eyes.
@@ -440,11 +416,7 @@ impl Calibration {
 
     /// The stereo rig for images of `width_per_eye`×`height` pixels (one eye, not the
     /// side-by-side frame).
-    pub fn rig_for_image(
-        &self,
-        width_per_eye: u32,
-        height: u32,
-    ) -> Result<StereoRig, CalibrationError> {
+    pub fn rig_for_image(&self, width_per_eye: u32, height: u32) -> Result<StereoRig, CalibrationError> {
         match Resolution::from_size(width_per_eye, height) {
             Some(res) => self.rig(res),
             None => {
@@ -494,12 +466,11 @@ impl Reader<'_> {
     }
 
     fn require(&self, section: &str, key: &str) -> Result<f64, CalibrationError> {
-        self.get(section, key)
-            .ok_or_else(|| CalibrationError::MissingKey {
-                path: self.path.to_path_buf(),
-                section: section.to_string(),
-                key: key.to_string(),
-            })
+        self.get(section, key).ok_or_else(|| CalibrationError::MissingKey {
+            path: self.path.to_path_buf(),
+            section: section.to_string(),
+            key: key.to_string(),
+        })
     }
 
     fn intrinsics(&self, section: &str) -> Result<Intrinsics, CalibrationError> {
@@ -535,16 +506,9 @@ impl Reader<'_> {
             self.stereo_either("TZ", res)?,
         );
         let suffixed = |key: &str| self.require("STEREO", &format!("{key}_{}", res.name()));
-        let rotation = rodrigues(Vector3::new(
-            suffixed("RX")?,
-            suffixed("CV")?,
-            suffixed("RZ")?,
-        ));
+        let rotation = rodrigues(Vector3::new(suffixed("RX")?, suffixed("CV")?, suffixed("RZ")?));
         let inverse = rotation.inverse();
-        Ok(Isometry3::from_parts(
-            Translation3::from(-(inverse * centre)),
-            inverse,
-        ))
+        Ok(Isometry3::from_parts(Translation3::from(-(inverse * centre)), inverse))
     }
 }
 
@@ -570,8 +534,7 @@ mod tests {
         rig.right_from_left.inverse().translation.vector
     }
 
-    const SIMPLE: &str =
-        "[LEFT_CAM_HD]\nfx=700\nfy=700\ncx=640\ncy=360\nk1=0\nk2=0\np1=0\np2=0\nk3=0\n\
+    const SIMPLE: &str = "[LEFT_CAM_HD]\nfx=700\nfy=700\ncx=640\ncy=360\nk1=0\nk2=0\np1=0\np2=0\nk3=0\n\
         [RIGHT_CAM_HD]\nfx=700\nfy=700\ncx=640\ncy=360\nk1=0\nk2=0\np1=0\np2=0\n\
         [STEREO]\nBaseline=120\nTY=0\nTZ=0\nCV_HD=0\nRX_HD=0\nRZ_HD=0\n";
 
@@ -590,16 +553,9 @@ mod tests {
         assert_eq!(hd.left.fx, 699.81);
         assert_eq!(hd.right.cy, 362.12);
         assert_eq!(hd.left.k3, -0.00108271);
-        assert!(
-            (hd.baseline_mm() - 119.934).abs() < 0.01,
-            "{}",
-            hd.baseline_mm()
-        );
+        assert!((hd.baseline_mm() - 119.934).abs() < 0.01, "{}", hd.baseline_mm());
         let c = centre(&hd);
-        assert!(
-            (c - Vector3::new(119.934, 0.0815, -0.298)).norm() < 1e-9,
-            "{c}"
-        );
+        assert!((c - Vector3::new(119.934, 0.0815, -0.298)).norm() < 1e-9, "{c}");
         for res in Resolution::ALL {
             let rig = cal.rig(res).unwrap();
             assert_eq!((rig.width, rig.height), res.size());
@@ -624,10 +580,7 @@ mod tests {
         let disparity = (l.x - rig.left.cx) - (r.x - rig.right.cx);
         let expected = rig.left.fx * 119.934 / 700.0;
         // Lens distortion and the ~1 mrad rotation move it by < 1 px.
-        assert!(
-            (disparity - expected).abs() < 1.5,
-            "{disparity} vs {expected}"
-        );
+        assert!((disparity - expected).abs() < 1.5, "{disparity} vs {expected}");
         assert!((l.y - r.y).abs() < 6.0);
 
         // Without distortion and rotation it is exact.
@@ -669,8 +622,7 @@ mod tests {
 
     #[test]
     fn suffixed_keys_win_and_names_are_case_insensitive() {
-        let text =
-            std::fs::read_to_string(data("tests/data/calibration/valid-suffixed.conf")).unwrap();
+        let text = std::fs::read_to_string(data("tests/data/calibration/valid-suffixed.conf")).unwrap();
         assert!(text.contains("\r\n"), "fixture must keep CRLF line endings");
         let cal = fixture("valid-suffixed.conf").unwrap();
         assert_eq!(cal.resolutions(), vec![Resolution::FHD, Resolution::HD]);
@@ -713,10 +665,7 @@ mod tests {
              (2K 2208x1242, FHD 1920x1080, HD 1280x720, VGA 672x376)"
         );
         let msg = cal.rig_for_image(2560, 720).unwrap_err().to_string();
-        assert!(
-            msg.contains("side-by-side") && msg.contains("HD 1280x720"),
-            "{msg}"
-        );
+        assert!(msg.contains("side-by-side") && msg.contains("HD 1280x720"), "{msg}");
         assert_eq!(
             cal.rig(Resolution::FHD).unwrap_err().to_string(),
             "SN12345.conf: no calibration for FHD (file has HD)"
@@ -730,10 +679,7 @@ mod tests {
                 "invalid-not-a-number.conf",
                 "line 2: value \"abc\" for key fx is not a number",
             ),
-            (
-                "invalid-missing-key.conf",
-                "section [LEFT_CAM_HD] lacks key cy",
-            ),
+            ("invalid-missing-key.conf", "section [LEFT_CAM_HD] lacks key cy"),
             ("invalid-no-sections.conf", "not a ZED calibration file"),
             (
                 "invalid-nan.conf",
@@ -765,18 +711,9 @@ mod tests {
                 simple_with("k2=0", "k2=0\nK2=1"),
                 "line 8: key K2 repeats in section [LEFT_CAM_HD] (first on line 7)",
             ),
-            (
-                simple_with("TY=0", ""),
-                "section [STEREO] lacks key TY (or TY_HD)",
-            ),
-            (
-                simple_with("RX_HD=0", ""),
-                "section [STEREO] lacks key RX_HD",
-            ),
-            (
-                simple_with("p2=0\nk3=0", "k3=0"),
-                "section [LEFT_CAM_HD] lacks key p2",
-            ),
+            (simple_with("TY=0", ""), "section [STEREO] lacks key TY (or TY_HD)"),
+            (simple_with("RX_HD=0", ""), "section [STEREO] lacks key RX_HD"),
+            (simple_with("p2=0\nk3=0", "k3=0"), "section [LEFT_CAM_HD] lacks key p2"),
             (
                 simple_with("[STEREO]", "[OTHER]"),
                 "section [STEREO] is missing (needed for HD)",
@@ -796,10 +733,7 @@ mod tests {
         ];
         for (result, problem) in cases {
             let msg = result.unwrap_err().to_string();
-            assert!(
-                msg.contains("SN7.conf") && msg.contains(problem),
-                "{problem}: {msg}"
-            );
+            assert!(msg.contains("SN7.conf") && msg.contains(problem), "{problem}: {msg}");
         }
         let cal = simple_with("", "[LEFT_CAM_VGA]\nfx=1\n").unwrap();
         let msg = cal.rig(Resolution::VGA).unwrap_err().to_string();
@@ -824,10 +758,7 @@ mod tests {
         let msg = Calibration::load(Path::new("/nonexistent/SN1.conf"))
             .unwrap_err()
             .to_string();
-        assert_eq!(
-            msg,
-            "cannot read /nonexistent/SN1.conf: No such file or directory"
-        );
+        assert_eq!(msg, "cannot read /nonexistent/SN1.conf: No such file or directory");
     }
 
     #[test]

@@ -191,10 +191,7 @@ mod tests {
             height: 720,
             left: Intrinsics::pinhole(700.0, 700.0, 640.0, 360.0),
             right: Intrinsics::pinhole(700.0, 700.0, 640.0, 360.0),
-            right_from_left: Isometry3::from_parts(
-                Translation3::new(-120.0, 0.0, 0.0),
-                UnitQuaternion::identity(),
-            ),
+            right_from_left: Isometry3::from_parts(Translation3::new(-120.0, 0.0, 0.0), UnitQuaternion::identity()),
         };
         let (l, r) = rig.project_both(&Point3::new(0.0, 0.0, 700.0));
         let (l, r) = (l.unwrap(), r.unwrap());

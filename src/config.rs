@@ -20,10 +20,7 @@ const EXAMPLE_CALIBRATION_NAME: &str = "SN-example.conf";
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     #[error("cannot read {path}: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Read { path: PathBuf, source: std::io::Error },
     #[error("{path}: {message}")]
     Toml { path: PathBuf, message: String },
     #[error("{path}: [{table}] {field}: {problem}")]
@@ -173,6 +170,10 @@ pub struct RobustSettings {
     pub refine_evaluations: usize,
     /// Minimum |cos| between the card normal and the line of sight (edge-on guard).
     pub min_facing_cos: f64,
+    /// A chromatic inner point also needs its saturation within this of the stored one.
+    pub sat_tolerance: u8,
+    /// Smallest image extent of a model side, full-resolution pixels (degenerate-pose guard).
+    pub min_extent_px: f64,
 }
 
 impl Default for RobustSettings {
@@ -184,6 +185,8 @@ impl Default for RobustSettings {
             immigrants: 0.1,
             refine_evaluations: 600,
             min_facing_cos: 0.3,
+            sat_tolerance: 50,
+            min_extent_px: 24.0,
         }
     }
 }
@@ -336,19 +339,34 @@ impl Config {
         };
         let ga = raw.ga;
         if ga.population < 4 {
-            return Err(invalid("ga", "population", format!("{} is too small (at least 4)", ga.population)));
+            return Err(invalid(
+                "ga",
+                "population",
+                format!("{} is too small (at least 4)", ga.population),
+            ));
         }
         if !(ga.survivors > 0.0 && ga.survivors < 1.0) {
-            return Err(invalid("ga", "survivors", format!("{} must lie in (0, 1)", ga.survivors)));
+            return Err(invalid(
+                "ga",
+                "survivors",
+                format!("{} must lie in (0, 1)", ga.survivors),
+            ));
         }
-        for (field, v) in [("crossover_rate", ga.crossover_rate), ("bit_mutation_rate", ga.bit_mutation_rate)] {
+        for (field, v) in [
+            ("crossover_rate", ga.crossover_rate),
+            ("bit_mutation_rate", ga.bit_mutation_rate),
+        ] {
             if !(0.0..=1.0).contains(&v) {
                 return Err(invalid("ga", field, format!("{v} must lie in [0, 1]")));
             }
         }
         let robust = raw.robust;
         if robust.pyramid_levels == 0 || robust.pyramid_levels > 5 {
-            return Err(invalid("robust", "pyramid_levels", format!("{} must be 1 to 5", robust.pyramid_levels)));
+            return Err(invalid(
+                "robust",
+                "pyramid_levels",
+                format!("{} must be 1 to 5", robust.pyramid_levels),
+            ));
         }
         if robust.level_share.len() != robust.pyramid_levels
             || robust.level_share.iter().any(|v| !v.is_finite() || *v < 0.0)
@@ -364,20 +382,36 @@ impl Config {
             return Err(invalid("robust", "restarts", "must be at least 1".into()));
         }
         if !(0.0..1.0).contains(&robust.immigrants) {
-            return Err(invalid("robust", "immigrants", format!("{} must lie in [0, 1)", robust.immigrants)));
+            return Err(invalid(
+                "robust",
+                "immigrants",
+                format!("{} must lie in [0, 1)", robust.immigrants),
+            ));
         }
         if !(0.0..1.0).contains(&robust.min_facing_cos) {
-            return Err(invalid("robust", "min_facing_cos", format!("{} must lie in [0, 1)", robust.min_facing_cos)));
+            return Err(invalid(
+                "robust",
+                "min_facing_cos",
+                format!("{} must lie in [0, 1)", robust.min_facing_cos),
+            ));
         }
         let model = raw.model;
         if !(model.step_px.is_finite() && model.step_px >= 0.0) {
             return Err(invalid("model", "step_px", format!("{} must be ≥ 0", model.step_px)));
         }
         if !(model.outer_width_px.is_finite() && model.outer_width_px >= 0.0) {
-            return Err(invalid("model", "outer_width_px", format!("{} must be ≥ 0", model.outer_width_px)));
+            return Err(invalid(
+                "model",
+                "outer_width_px",
+                format!("{} must be ≥ 0", model.outer_width_px),
+            ));
         }
         if !(model.center_fraction > 0.0 && model.center_fraction <= 1.0) {
-            return Err(invalid("model", "center_fraction", format!("{} must lie in (0, 1]", model.center_fraction)));
+            return Err(invalid(
+                "model",
+                "center_fraction",
+                format!("{} must lie in (0, 1]", model.center_fraction),
+            ));
         }
         if model.target_points < 16 {
             return Err(invalid("model", "target_points", "must be at least 16".into()));
@@ -398,7 +432,11 @@ impl Config {
             return Err(invalid("fitness", "sigma", format!("{} must be > 0", fitness.sigma)));
         }
         if fitness.e1 * 1.0 + fitness.e3 <= 0.0 || fitness.e1 <= 0.0 || fitness.e3 < 0.0 {
-            return Err(invalid("fitness", "e1", "e1 must be > 0 and e3 ≥ 0 (they define the maximum m)".into()));
+            return Err(invalid(
+                "fitness",
+                "e1",
+                "e1 must be > 0 and e3 ≥ 0 (they define the maximum m)".into(),
+            ));
         }
         Ok(Config {
             calibration,
@@ -454,14 +492,15 @@ mod tests {
     use super::*;
 
     fn fixture(name: &str) -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/config").join(name)
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/config")
+            .join(name)
     }
 
     #[test]
     fn built_in_default_equals_shipped_file() {
         let builtin = Config::load(None).unwrap();
-        let shipped =
-            Config::load(Some(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/default.toml"))).unwrap();
+        let shipped = Config::load(Some(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/default.toml"))).unwrap();
         assert_eq!(builtin.search, shipped.search);
         assert_eq!(builtin.ga, shipped.ga);
         assert_eq!(builtin.search.z_mm, [300.0, 1200.0]);
@@ -480,7 +519,10 @@ mod tests {
     #[test]
     fn invalid_fixtures_name_file_and_problem() {
         for (name, needle) in [
-            ("invalid-inverted-range.toml", "[search] z_mm: [900, 300] is empty or inverted"),
+            (
+                "invalid-inverted-range.toml",
+                "[search] z_mm: [900, 300] is empty or inverted",
+            ),
             ("invalid-nan.toml", "[search] x_mm: [NaN, 300] must be finite"),
             ("invalid-unknown-key.toml", "unknown field `populaton`"),
             ("invalid-syntax.toml", "line 3"),

@@ -26,11 +26,20 @@ impl Prepared {
         let (w, h) = images.eye_size();
         let rig = config.calibration.rig_for_image(w, h)?;
         let mode = config.ga.mode;
-        let (rule, min_cos, levels) = match mode {
-            Mode::Paper => (OuterRule::RawHue, 0.0, 1),
-            Mode::Robust => (OuterRule::ColorClass, config.robust.min_facing_cos, config.robust.pyramid_levels),
+        let r = &config.robust;
+        let (rule, min_cos, sat_tol, levels) = match mode {
+            Mode::Paper => (OuterRule::RawHue, 0.0, 255, 1),
+            Mode::Robust => (
+                OuterRule::ColorClass,
+                r.min_facing_cos,
+                r.sat_tolerance,
+                r.pyramid_levels,
+            ),
         };
-        let scorer = Scorer::new(model, config.fitness, rule, min_cos, config.left_from_hand);
+        let mut scorer = Scorer::new(model, config.fitness, rule, min_cos, sat_tol, config.left_from_hand);
+        if mode == Mode::Robust {
+            scorer.min_extent_px = r.min_extent_px;
+        }
         let pyramid = FramePyramid::build(images, &rig, levels, &config.fitness.classes());
         let bounds = Bounds::new(&config.search, model, mode == Mode::Robust);
         Ok(Self {
@@ -43,7 +52,14 @@ impl Prepared {
 
     /// The search problem over this frame.
     pub fn problem<'a>(&'a self, model: &PhotoModel, config: &Config) -> Problem<'a> {
-        Problem::new(&self.scorer, &self.pyramid, model, self.bounds, config.ga.threads, self.mode == Mode::Robust)
+        Problem::new(
+            &self.scorer,
+            &self.pyramid,
+            model,
+            self.bounds,
+            config.ga.threads,
+            self.mode == Mode::Robust,
+        )
     }
 }
 

@@ -35,27 +35,29 @@ pub struct PointSet {
     pub inner_x: Vec<f64>,
     pub inner_y: Vec<f64>,
     pub inner_code: Vec<u8>,
+    pub inner_sat: Vec<u8>,
     pub outer_x: Vec<f64>,
     pub outer_y: Vec<f64>,
 }
 
 impl PointSet {
-    /// All points of a model (`stride` 1), or every `stride`-th grid row and column of them.
+    /// All points of a model (`stride` 1), or one point per `stride` × `stride` block of
+    /// the grid, at the block's centre with the block's mean colour: the model as a
+    /// thumbnail, matching the blurred images of a coarse pyramid level.
     pub fn from_model(model: &PhotoModel, params: &FitnessParams, stride: usize) -> Self {
         let classes = params.classes();
-        let stride = stride.max(1) as i64;
         let inner: Vec<[f64; 2]> = model.inner.iter().map(|p| [p.x, p.y]).collect();
-        let keep_inner = on_sub_grid(&inner, model.step_px, stride);
-        let keep_outer = on_sub_grid(&model.outer, model.step_px, stride);
         let mut set = PointSet::default();
-        for (p, _) in model.inner.iter().zip(&keep_inner).filter(|(_, &k)| k) {
-            set.inner_x.push(p.x);
-            set.inner_y.push(p.y);
-            set.inner_code.push(classes.code(p.h, p.s, p.v));
+        for (members, [x, y]) in blocks(&inner, model.step_px, stride) {
+            let (h, s, v) = mean_hsv(members.iter().map(|&i| &model.inner[i]));
+            set.inner_x.push(x);
+            set.inner_y.push(y);
+            set.inner_code.push(classes.code(h, s, v));
+            set.inner_sat.push(s);
         }
-        for (p, _) in model.outer.iter().zip(&keep_outer).filter(|(_, &k)| k) {
-            set.outer_x.push(p[0]);
-            set.outer_y.push(p[1]);
+        for (_, [x, y]) in blocks(&model.outer, model.step_px, stride) {
+            set.outer_x.push(x);
+            set.outer_y.push(y);
         }
         set
     }
@@ -77,10 +79,20 @@ pub struct Scorer {
     /// A candidate whose card normal makes |cos| below this with either line of sight
     /// scores 0; seen from behind always scores 0.
     pub min_facing_cos: f64,
+    /// A chromatic inner point also needs the saturation within this (255: hue only, as
+    /// in the paper).
+    pub sat_tolerance: u8,
+    /// A candidate whose model spans fewer full-resolution pixels than this along either
+    /// side (in either image) scores 0: a speck of the right colour is no match.
+    pub min_extent_px: f64,
+    /// Model frame size `L_P`, `B_P` in photo pixels.
+    pub box_px: [f64; 2],
     pub left_from_hand: Isometry3<f64>,
     /// `H̄_in` and the central rectangle's colour code.
     pub mean_hue: f64,
     pub center_code: u8,
+    /// Mean saturation of the central rectangle's chromatic points.
+    pub center_sat: u8,
 }
 
 /// Per-camera transform of one candidate: a model point (mm) maps to `t + x·ax + y·ay`.
@@ -91,14 +103,25 @@ struct Placement {
 }
 
 impl Scorer {
-    pub fn new(model: &PhotoModel, params: FitnessParams, rule: OuterRule, min_facing_cos: f64, left_from_hand: Isometry3<f64>) -> Self {
+    pub fn new(
+        model: &PhotoModel,
+        params: FitnessParams,
+        rule: OuterRule,
+        min_facing_cos: f64,
+        sat_tolerance: u8,
+        left_from_hand: Isometry3<f64>,
+    ) -> Self {
         Self {
             params,
             rule,
             min_facing_cos,
+            sat_tolerance,
+            min_extent_px: 0.0,
+            box_px: [model.l_p, model.b_p],
             left_from_hand,
             mean_hue: model.mean_hue,
             center_code: model.center_code(),
+            center_sat: model.mean_saturation.clamp(0.0, 255.0).round() as u8,
         }
     }
 
@@ -109,20 +132,21 @@ impl Scorer {
         let right_from_model = level.rig.right_from_left * left_from_model;
         let (inv_a, inv_b) = (1.0 / c.alpha, 1.0 / c.beta());
         let mut out = Vec::with_capacity(2);
-        for iso in [left_from_model, right_from_model] {
+        for (iso, cam) in [(left_from_model, &level.rig.left), (right_from_model, &level.rig.right)] {
             let r: Matrix3<f64> = iso.rotation.to_rotation_matrix().into_inner();
             let t = iso.translation.vector;
             let normal = r.column(2).into_owned();
             // The photo's face looks along −z_M; it faces the camera when t·z_M > 0.
             let facing = t.dot(&normal) / t.norm().max(1e-9);
-            if !(facing > self.min_facing_cos) {
+            let (ax, ay) = (r.column(0) * inv_a, r.column(1) * inv_b);
+            // Approximate image extent of each model side, in full-resolution pixels.
+            let px = cam.fx / level.scale / t.z.max(1e-9);
+            let too_small = (ax * self.box_px[0]).norm() * px < self.min_extent_px
+                || (ay * self.box_px[1]).norm() * px < self.min_extent_px;
+            if facing.is_nan() || facing <= self.min_facing_cos || too_small {
                 return None;
             }
-            out.push(Placement {
-                t,
-                ax: r.column(0) * inv_a,
-                ay: r.column(1) * inv_b,
-            });
+            out.push(Placement { t, ax, ay });
         }
         let right = out.pop()?;
         let left = out.pop()?;
@@ -159,7 +183,7 @@ impl Scorer {
         let mut sum = 0.0;
         for i in 0..points.inner_x.len() {
             sum += match pixel(plane, cam, p, points.inner_x[i], points.inner_y[i]) {
-                Some(idx) if self.inner_close(points.inner_code[i], plane.code[idx]) => pr.e1,
+                Some(idx) if self.inner_close(points.inner_code[i], points.inner_sat[i], plane, idx) => pr.e1,
                 _ => pr.e2,
             };
         }
@@ -175,9 +199,12 @@ impl Scorer {
     /// Figure 8: achromatic stored colours match the same class; chromatic ones match a
     /// chromatic pixel of close hue.
     #[inline]
-    fn inner_close(&self, model: u8, image: u8) -> bool {
+    fn inner_close(&self, model: u8, model_sat: u8, plane: &ColorPlane, idx: usize) -> bool {
+        let image = plane.code[idx];
         if is_chromatic(model) {
-            is_chromatic(image) && hue_distance(model, image) <= self.params.inner_hue_tolerance
+            is_chromatic(image)
+                && hue_distance(model, image) <= self.params.inner_hue_tolerance
+                && model_sat.abs_diff(plane.sat[idx]) <= self.sat_tolerance
         } else {
             model == image
         }
@@ -192,7 +219,9 @@ impl Scorer {
             OuterRule::ColorClass => {
                 let code = plane.code[idx];
                 if is_chromatic(self.center_code) {
-                    is_chromatic(code) && circular_hue_gap(code as f64, self.mean_hue) < threshold
+                    is_chromatic(code)
+                        && circular_hue_gap(code as f64, self.mean_hue) < threshold
+                        && plane.sat[idx].abs_diff(self.center_sat) <= self.sat_tolerance
                 } else {
                     code == self.center_code
                 }
@@ -231,18 +260,48 @@ pub struct ProjectedPoints {
     pub outer: Vec<Option<Point2<f64>>>,
 }
 
-/// Which grid points (spacing `step`) lie on every `stride`-th row and column.
-fn on_sub_grid(points: &[[f64; 2]], step: f64, stride: i64) -> Vec<bool> {
+/// Groups grid points (spacing `step`) into `stride` × `stride` blocks: each block's
+/// member indices and mean position, in a deterministic order.
+fn blocks(points: &[[f64; 2]], step: f64, stride: usize) -> Vec<(Vec<usize>, [f64; 2])> {
+    let stride = stride.max(1) as i64;
     let min = |i: usize| points.iter().map(|p| p[i]).fold(f64::INFINITY, f64::min);
     let (x0, y0) = (min(0), min(1));
-    points
-        .iter()
-        .map(|p| {
-            let ix = ((p[0] - x0) / step).round() as i64;
-            let iy = ((p[1] - y0) / step).round() as i64;
-            ix % stride == 0 && iy % stride == 0
+    let mut map: std::collections::BTreeMap<(i64, i64), Vec<usize>> = Default::default();
+    for (i, p) in points.iter().enumerate() {
+        let ix = ((p[0] - x0) / step).round() as i64;
+        let iy = ((p[1] - y0) / step).round() as i64;
+        map.entry((iy.div_euclid(stride), ix.div_euclid(stride)))
+            .or_default()
+            .push(i);
+    }
+    map.into_values()
+        .map(|m| {
+            let n = m.len() as f64;
+            let x = m.iter().map(|&i| points[i][0]).sum::<f64>() / n;
+            let y = m.iter().map(|&i| points[i][1]).sum::<f64>() / n;
+            (m, [x, y])
         })
         .collect()
+}
+
+/// Mean colour of model points: saturation-weighted circular mean hue, mean S and V.
+fn mean_hsv<'a>(points: impl Iterator<Item = &'a crate::model::InnerPoint>) -> (u8, u8, u8) {
+    let (mut cx, mut cy, mut s, mut v, mut n) = (0.0f64, 0.0f64, 0.0, 0.0, 0.0);
+    for p in points {
+        let a = p.h as f64 * std::f64::consts::PI / 90.0;
+        cx += a.cos() * p.s as f64;
+        cy += a.sin() * p.s as f64;
+        s += p.s as f64;
+        v += p.v as f64;
+        n += 1.0;
+    }
+    let n = f64::max(n, 1.0);
+    let deg = cy.atan2(cx).to_degrees().rem_euclid(360.0);
+    (
+        ((deg / 2.0).round() as u32 % 180) as u8,
+        (s / n).round() as u8,
+        (v / n).round() as u8,
+    )
 }
 
 /// Distance of two hues on the 180-step circle (real-valued).
@@ -254,16 +313,17 @@ fn circular_hue_gap(a: f64, b: f64) -> f64 {
 
 /// The pixel index a model point (photo pixels from the box centre) lands on, or `None`
 /// when it falls outside the image or behind the camera.
-#[inline]
+#[inline(always)]
 fn pixel(plane: &ColorPlane, cam: &Intrinsics, p: &Placement, x: f64, y: f64) -> Option<usize> {
     let c = p.t + p.ax * x + p.ay * y;
     if c.z <= 1e-6 {
         return None;
     }
     let (xd, yd) = cam.distort(c.x / c.z, c.y / c.z);
-    let u = (cam.fx * xd + cam.cx).round();
-    let v = (cam.fy * yd + cam.cy).round();
-    if u < 0.0 || v < 0.0 || u >= plane.width as f64 || v >= plane.height as f64 {
+    // Nearest pixel: +0.5 then truncation (valid once the value is known non-negative).
+    let u = cam.fx * xd + cam.cx + 0.5;
+    let v = cam.fy * yd + cam.cy + 0.5;
+    if !(u >= 0.0 && v >= 0.0 && u < plane.width as f64 && v < plane.height as f64) {
         return None;
     }
     Some(v as usize * plane.width + u as usize)
@@ -285,6 +345,7 @@ mod tests {
             height: 20,
             code: vec![0; 400],
             hue: vec![0; 400],
+            sat: vec![255; 400],
         };
         for y in 0..20 {
             for x in 0..20 {
@@ -309,7 +370,13 @@ mod tests {
 
     /// A model of 2×2 inner points (hue 0 red) and 4 outer points, 2 px apart.
     fn model() -> PhotoModel {
-        let red = |x, y| InnerPoint { x, y, h: 0, s: 255, v: 255 };
+        let red = |x, y| InnerPoint {
+            x,
+            y,
+            h: 0,
+            s: 255,
+            v: 255,
+        };
         PhotoModel {
             format: "photopose-model".into(),
             version: 1,
@@ -320,6 +387,7 @@ mod tests {
             step_px: 2.0,
             outer_width_px: 2.0,
             mean_hue: 0.0,
+            mean_saturation: 255.0,
             center_class: "chromatic".into(),
             inner: vec![red(-1.0, -1.0), red(1.0, -1.0), red(-1.0, 1.0), red(1.0, 1.0)],
             outer: vec![[-3.0, 0.0], [3.0, 0.0], [0.0, -3.0], [0.0, 3.0]],
@@ -338,13 +406,26 @@ mod tests {
     }
 
     fn scorer(rule: OuterRule) -> Scorer {
-        Scorer::new(&model(), FitnessParams::default(), rule, 0.0, Isometry3::identity())
+        Scorer::new(
+            &model(),
+            FitnessParams::default(),
+            rule,
+            0.0,
+            255,
+            Isometry3::identity(),
+        )
     }
 
     #[test]
     fn perfect_match_scores_two() {
         // Red 4×4 patch around the centre pixel (9.5, 9.5) → pixels 8..=11; grey elsewhere.
-        let lv = level(|x, y| if (8..=11).contains(&x) && (8..=11).contains(&y) { 0 } else { GRAY });
+        let lv = level(|x, y| {
+            if (8..=11).contains(&x) && (8..=11).contains(&y) {
+                0
+            } else {
+                GRAY
+            }
+        });
         let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
         let f = scorer(OuterRule::ColorClass).evaluate(&pts, &lv, &candidate());
         // All 4 inner close (4·2) + 4 outer background (4·0.5) → F_L = F_R = 1, g = 1, F = 2.
@@ -354,7 +435,13 @@ mod tests {
 
     #[test]
     fn paper_rule_punishes_grey_background_with_hue_zero() {
-        let lv = level(|x, y| if (8..=11).contains(&x) && (8..=11).contains(&y) { 0 } else { GRAY });
+        let lv = level(|x, y| {
+            if (8..=11).contains(&x) && (8..=11).contains(&y) {
+                0
+            } else {
+                GRAY
+            }
+        });
         let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
         let f = scorer(OuterRule::RawHue).evaluate(&pts, &lv, &candidate());
         // Raw hue of grey is 0 = H̄_in: every outer point scores e4 = −1.9.
@@ -388,7 +475,13 @@ mod tests {
 
     #[test]
     fn similarity_factor_halves_unbalanced_images() {
-        let mut lv = level(|x, y| if (8..=11).contains(&x) && (8..=11).contains(&y) { 0 } else { GRAY });
+        let mut lv = level(|x, y| {
+            if (8..=11).contains(&x) && (8..=11).contains(&y) {
+                0
+            } else {
+                GRAY
+            }
+        });
         lv.right.code.iter_mut().for_each(|c| *c = 120);
         let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
         let f = scorer(OuterRule::ColorClass).evaluate(&pts, &lv, &candidate());

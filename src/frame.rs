@@ -120,23 +120,27 @@ pub struct ColorPlane {
     pub code: Vec<u8>,
     /// Raw OpenCV hue per pixel (0 for pure grey, as OpenCV gives), row-major.
     pub hue: Vec<u8>,
+    /// Saturation per pixel, row-major.
+    pub sat: Vec<u8>,
 }
 
 impl ColorPlane {
     pub fn from_rgb(img: &RgbImage, classes: &ColorClasses) -> Self {
         let (w, h) = img.dimensions();
         let n = (w * h) as usize;
-        let (mut code, mut hue) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        let (mut code, mut hue, mut sat) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
         for p in img.pixels() {
             let (hh, s, v) = rgb_to_hsv(p[0], p[1], p[2]);
             code.push(classes.code(hh, s, v));
             hue.push(hh);
+            sat.push(s);
         }
         Self {
             width: w as usize,
             height: h as usize,
             code,
             hue,
+            sat,
         }
     }
 }
@@ -172,15 +176,43 @@ impl FramePyramid {
             let mut level_rig = rig.scaled(scale);
             level_rig.width = l.width();
             level_rig.height = l.height();
+            // Coarse levels are blurred a little more, like the model's thumbnail colours.
+            let (lc, rc) = if level > 0 {
+                (
+                    ColorPlane::from_rgb(&blur3(&l), classes),
+                    ColorPlane::from_rgb(&blur3(&r), classes),
+                )
+            } else {
+                (ColorPlane::from_rgb(&l, classes), ColorPlane::from_rgb(&r, classes))
+            };
             out.push(FrameLevel {
                 scale,
                 rig: level_rig,
-                left: ColorPlane::from_rgb(&l, classes),
-                right: ColorPlane::from_rgb(&r, classes),
+                left: lc,
+                right: rc,
             });
         }
         Self { levels: out }
     }
+}
+
+/// 3×3 box blur (edges clamped).
+fn blur3(img: &RgbImage) -> RgbImage {
+    let (w, h) = (img.width() as i64, img.height() as i64);
+    RgbImage::from_fn(img.width(), img.height(), |x, y| {
+        let mut acc = [0u32; 3];
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let px = (x as i64 + dx).clamp(0, w - 1) as u32;
+                let py = (y as i64 + dy).clamp(0, h - 1) as u32;
+                let p = img.get_pixel(px, py);
+                for c in 0..3 {
+                    acc[c] += p[c] as u32;
+                }
+            }
+        }
+        image::Rgb([(acc[0] / 9) as u8, (acc[1] / 9) as u8, (acc[2] / 9) as u8])
+    })
 }
 
 /// Halves an image by averaging 2×2 blocks.
@@ -212,24 +244,35 @@ mod tests {
         assert_eq!(st.right.get_pixel(0, 1).0, [255, 0, 0]);
         assert_eq!(st.to_sbs(), sbs);
         let odd = RgbImage::new(7, 2);
-        let e = StereoImages::from_sbs(&odd, Path::new("f.png")).unwrap_err().to_string();
+        let e = StereoImages::from_sbs(&odd, Path::new("f.png"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("f.png") && e.contains("odd"), "{e}");
     }
 
     #[test]
     fn missing_or_corrupt_image_names_the_file() {
-        let e = StereoImages::load_sbs(Path::new("/nonexistent/frame.png")).unwrap_err().to_string();
+        let e = StereoImages::load_sbs(Path::new("/nonexistent/frame.png"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("frame.png"), "{e}");
         let p = std::env::temp_dir().join(format!("photopose-corrupt-{}.png", std::process::id()));
         std::fs::write(&p, b"\x89PNG\r\n\x1a\nnot really").unwrap();
         let e = StereoImages::load_sbs(&p).unwrap_err().to_string();
-        assert!(e.contains("photopose-corrupt") && e.starts_with("cannot read image"), "{e}");
+        assert!(
+            e.contains("photopose-corrupt") && e.starts_with("cannot read image"),
+            "{e}"
+        );
         std::fs::remove_file(&p).unwrap();
     }
 
     #[test]
     fn colour_plane_codes_pixels() {
-        let img = RgbImage::from_fn(2, 1, |x, _| if x == 0 { Rgb([0, 0, 255]) } else { Rgb([250, 250, 250]) });
+        let img = RgbImage::from_fn(
+            2,
+            1,
+            |x, _| if x == 0 { Rgb([0, 0, 255]) } else { Rgb([250, 250, 250]) },
+        );
         let p = ColorPlane::from_rgb(&img, &ColorClasses::default());
         assert_eq!(p.code, vec![120, crate::color::WHITE]);
         assert_eq!(p.hue, vec![120, 0]);

@@ -19,4 +19,4 @@ pub mod ga;
 pub mod model;
 pub mod overlay;
 pub mod pose;
-// pub mod render;
+pub mod render;

@@ -6,7 +6,11 @@ use clap::{Parser, Subcommand};
 use photopose::cli;
 
 #[derive(Parser, Debug)]
-#[command(name = "photopose", version, about = "6-DoF pose and size of an object from one photo and a ZED 2i stereo camera")]
+#[command(
+    name = "photopose",
+    version,
+    about = "6-DoF pose and size of an object from one photo and a ZED 2i stereo camera"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -18,8 +22,8 @@ enum Command {
     Model(cli::model::ModelArgs),
     /// Estimate pose and size from one stereo frame (one-shot GA).
     Estimate(cli::estimate::EstimateArgs),
-    // /// Render a synthetic stereo frame of a photo card in a cluttered scene.
-    // Render(cli::render::RenderArgs),
+    /// Render a synthetic stereo frame of a photo card in a cluttered scene.
+    Render(cli::render::RenderArgs),
 }
 
 fn main() -> ExitCode {
@@ -31,7 +35,7 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Model(a) => cli::model::run(a),
         Command::Estimate(a) => cli::estimate::run(a),
-        // Command::Render(a) => cli::render::run(a),
+        Command::Render(a) => cli::render::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -30,15 +30,9 @@ pub enum ModelError {
     #[error("{path}: box {w}x{h} is too small (at least 8x8 pixels)")]
     BoxTooSmall { path: PathBuf, w: i64, h: i64 },
     #[error("cannot read {path}: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Read { path: PathBuf, source: std::io::Error },
     #[error("cannot write {path}: {source}")]
-    Write {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Write { path: PathBuf, source: std::io::Error },
     #[error("{path}: not a photopose model: {message}")]
     Parse { path: PathBuf, message: String },
     #[error("{path}: model format version {found} is not supported (this build reads {VERSION})")]
@@ -102,6 +96,8 @@ pub struct PhotoModel {
     pub outer_width_px: f64,
     /// Mean hue `H̄_in` of the central rectangle (OpenCV units, circular mean).
     pub mean_hue: f64,
+    /// Mean saturation of the central rectangle's chromatic points (0 if none).
+    pub mean_saturation: f64,
     /// Colour class that dominates the central rectangle: "chromatic", "black", "gray" or "white".
     pub center_class: String,
     /// Inner points `[x, y, H, S, V]`, x right and y down from the box centre.
@@ -159,9 +155,15 @@ impl PhotoModel {
         let mut inner = Vec::new();
         for &py in &grid(hf) {
             for &px in &grid(wf) {
-                let (r, g, b) = mean_rgb(photo, cx + px, cy + py);
+                let (r, g, b) = mean_rgb(photo, cx + px, cy + py, step);
                 let (hh, s, v) = rgb_to_hsv(r, g, b);
-                inner.push(InnerPoint { x: px, y: py, h: hh, s, v });
+                inner.push(InnerPoint {
+                    x: px,
+                    y: py,
+                    h: hh,
+                    s,
+                    v,
+                });
             }
         }
         // The outer strip continues the grid beyond the box, up to `outer_width` away.
@@ -181,11 +183,14 @@ impl PhotoModel {
             }
         }
         let (fx, fy) = (settings.center_fraction * half_w, settings.center_fraction * half_h);
-        let center: Vec<u8> = inner
+        let central: Vec<&InnerPoint> = inner.iter().filter(|p| p.x.abs() <= fx && p.y.abs() <= fy).collect();
+        let center: Vec<u8> = central.iter().map(|p| classes.code(p.h, p.s, p.v)).collect();
+        let chromatic_sat: Vec<f64> = central
             .iter()
-            .filter(|p| p.x.abs() <= fx && p.y.abs() <= fy)
-            .map(|p| classes.code(p.h, p.s, p.v))
+            .filter(|p| is_chromatic(classes.code(p.h, p.s, p.v)))
+            .map(|p| p.s as f64)
             .collect();
+        let mean_saturation = chromatic_sat.iter().sum::<f64>() / (chromatic_sat.len().max(1) as f64);
         let (mean_hue, center_class) = center_colour(&center);
         Ok(PhotoModel {
             format: FORMAT.into(),
@@ -202,6 +207,7 @@ impl PhotoModel {
             step_px: step,
             outer_width_px: outer_width,
             mean_hue,
+            mean_saturation,
             center_class: center_class.into(),
             inner,
             outer,
@@ -278,22 +284,27 @@ impl PhotoModel {
     }
 }
 
-/// Mean RGB of the 3×3 neighbourhood of a photo position (clamped to the photo).
-fn mean_rgb(photo: &RgbImage, x: f64, y: f64) -> (u8, u8, u8) {
+/// Mean RGB of the grid cell (`step` × `step` pixels, at least 3 × 3) centred on a photo
+/// position, clamped to the photo: the colour the camera sees there once the photo is
+/// shrunk to a few pixels per sample.
+fn mean_rgb(photo: &RgbImage, x: f64, y: f64, step: f64) -> (u8, u8, u8) {
     let (w, h) = photo.dimensions();
+    let r = (step / 2.0).floor().max(1.0) as i64;
     let (xi, yi) = (x.floor() as i64, y.floor() as i64);
-    let mut acc = [0u32; 3];
-    for dy in -1..=1 {
-        for dx in -1..=1 {
+    let mut acc = [0u64; 3];
+    let mut n = 0u64;
+    for dy in -r..=r {
+        for dx in -r..=r {
             let px = (xi + dx).clamp(0, w as i64 - 1) as u32;
             let py = (yi + dy).clamp(0, h as i64 - 1) as u32;
             let p = photo.get_pixel(px, py).0;
             for c in 0..3 {
-                acc[c] += p[c] as u32;
+                acc[c] += p[c] as u64;
             }
+            n += 1;
         }
     }
-    ((acc[0] / 9) as u8, (acc[1] / 9) as u8, (acc[2] / 9) as u8)
+    ((acc[0] / n) as u8, (acc[1] / n) as u8, (acc[2] / n) as u8)
 }
 
 /// `H̄_in` and the dominant class of the central rectangle's colour codes.
@@ -331,8 +342,14 @@ mod tests {
                 photo.put_pixel(x, y, Rgb([220, 30, 30]));
             }
         }
-        let m = PhotoModel::build(&photo, Path::new("p.png"), [30, 20, 40, 40], &settings(5.0), &ColorClasses::default())
-            .unwrap();
+        let m = PhotoModel::build(
+            &photo,
+            Path::new("p.png"),
+            [30, 20, 40, 40],
+            &settings(5.0),
+            &ColorClasses::default(),
+        )
+        .unwrap();
         assert_eq!(m.inner.len(), 64);
         assert_eq!((m.l_p, m.b_p), (40.0, 40.0));
         // Points are centred on the box: from −17.5 to 17.5.
@@ -351,17 +368,32 @@ mod tests {
     #[test]
     fn box_outside_photo_is_an_error_naming_the_photo() {
         let photo = RgbImage::new(50, 50);
-        let e = PhotoModel::build(&photo, Path::new("pear.jpg"), [30, 30, 40, 10], &settings(4.0), &ColorClasses::default())
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("pear.jpg") && e.contains("does not lie inside the 50x50 photo"), "{e}");
+        let e = PhotoModel::build(
+            &photo,
+            Path::new("pear.jpg"),
+            [30, 30, 40, 10],
+            &settings(4.0),
+            &ColorClasses::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("pear.jpg") && e.contains("does not lie inside the 50x50 photo"),
+            "{e}"
+        );
     }
 
     #[test]
     fn save_and_load_round_trip_and_reject_bad_files() {
         let photo = RgbImage::from_pixel(64, 64, Rgb([128, 128, 128]));
-        let m = PhotoModel::build(&photo, Path::new("g.png"), [8, 8, 48, 40], &settings(4.0), &ColorClasses::default())
-            .unwrap();
+        let m = PhotoModel::build(
+            &photo,
+            Path::new("g.png"),
+            [8, 8, 48, 40],
+            &settings(4.0),
+            &ColorClasses::default(),
+        )
+        .unwrap();
         assert_eq!(m.center_class, "gray");
         let dir = std::env::temp_dir().join(format!("photopose-model-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();

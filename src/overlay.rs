@@ -3,7 +3,6 @@
 
 use image::{Rgb, RgbImage};
 
-
 use crate::fitness::{PointSet, ProjectedPoints, Scorer};
 use crate::frame::{FrameLevel, StereoImages};
 use crate::model::PhotoModel;
@@ -14,7 +13,13 @@ const OUTER: Rgb<u8> = Rgb([255, 40, 255]);
 const OUTLINE: Rgb<u8> = Rgb([255, 255, 0]);
 
 /// The side-by-side frame with the candidate's projection drawn on both eyes.
-pub fn draw(images: &StereoImages, scorer: &Scorer, level: &FrameLevel, model: &PhotoModel, cand: &PoseSize) -> RgbImage {
+pub fn draw(
+    images: &StereoImages,
+    scorer: &Scorer,
+    level: &FrameLevel,
+    model: &PhotoModel,
+    cand: &PoseSize,
+) -> RgbImage {
     let mut out = images.to_sbs();
     let points = PointSet::from_model(model, &scorer.params, 1);
     let projected = scorer.project_points(&points, level, cand);
@@ -25,7 +30,7 @@ pub fn draw(images: &StereoImages, scorer: &Scorer, level: &FrameLevel, model: &
         let dx = eye as f64 * eye_w;
         draw_dots(&mut out, pts, dx, eye_w);
         for p in line.inner.iter().flatten() {
-            dot(&mut out, p.x + dx, p.y, 0, OUTLINE, dx, eye_w);
+            dot(&mut out, p.x + dx, p.y, 1, OUTLINE, dx, eye_w);
         }
     }
     out
@@ -33,10 +38,10 @@ pub fn draw(images: &StereoImages, scorer: &Scorer, level: &FrameLevel, model: &
 
 fn draw_dots(img: &mut RgbImage, pts: &ProjectedPoints, dx: f64, eye_w: f64) {
     for p in pts.outer.iter().flatten() {
-        dot(img, p.x + dx, p.y, 1, OUTER, dx, eye_w);
+        dot(img, p.x + dx, p.y, 0, OUTER, dx, eye_w);
     }
     for p in pts.inner.iter().flatten() {
-        dot(img, p.x + dx, p.y, 1, INNER, dx, eye_w);
+        dot(img, p.x + dx, p.y, 0, INNER, dx, eye_w);
     }
 }
 
@@ -47,10 +52,16 @@ fn outline_points(model: &PhotoModel) -> PointSet {
     let n = 400;
     for i in 0..=n {
         let t = i as f64 / n as f64;
-        for (x, y) in [(-hw + t * 2.0 * hw, -hh), (-hw + t * 2.0 * hw, hh), (-hw, -hh + t * 2.0 * hh), (hw, -hh + t * 2.0 * hh)] {
+        for (x, y) in [
+            (-hw + t * 2.0 * hw, -hh),
+            (-hw + t * 2.0 * hw, hh),
+            (-hw, -hh + t * 2.0 * hh),
+            (hw, -hh + t * 2.0 * hh),
+        ] {
             set.inner_x.push(x);
             set.inner_y.push(y);
             set.inner_code.push(0);
+            set.inner_sat.push(0);
         }
     }
     set
@@ -68,4 +79,3 @@ fn dot(img: &mut RgbImage, x: f64, y: f64, r: i64, colour: Rgb<u8>, x0: f64, w: 
         }
     }
 }
-

@@ -56,7 +56,9 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
     let seed = args.seed.unwrap_or(config.ga.seed);
     let bar = super::progress_bar(generations as u64, "generations");
     let start = Instant::now();
-    let outcome = estimate::run(&model, &images, &config, generations, seed, &mut |g| bar.set_position(g as u64))?;
+    let outcome = estimate::run(&model, &images, &config, generations, seed, &mut |g| {
+        bar.set_position(g as u64)
+    })?;
     bar.finish_and_clear();
     let elapsed = start.elapsed().as_secs_f64();
     print!("{}", estimate::table(&model, &outcome));
@@ -71,8 +73,16 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.overlay {
         let prepared = Prepared::new(&model, &images, &config)?;
-        let picture = crate::overlay::draw(&images, &prepared.scorer, &prepared.pyramid.levels[0], &model, &outcome.best);
-        picture.save(path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+        let picture = crate::overlay::draw(
+            &images,
+            &prepared.scorer,
+            &prepared.pyramid.levels[0],
+            &model,
+            &outcome.best,
+        );
+        picture
+            .save(path)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
         println!("wrote {}", path.display());
     }
     Ok(())

@@ -2,7 +2,7 @@
 
 pub mod estimate;
 pub mod model;
-// pub mod render;
+pub mod render;
 
 use std::io::IsTerminal;
 

@@ -32,7 +32,9 @@ pub fn parse_box(text: &str) -> anyhow::Result<[i64; 4]> {
     }
     let mut b = [0i64; 4];
     for (v, p) in b.iter_mut().zip(&parts) {
-        *v = p.parse().with_context(|| format!("--box {text:?}: {p:?} is not an integer"))?;
+        *v = p
+            .parse()
+            .with_context(|| format!("--box {text:?}: {p:?} is not an integer"))?;
     }
     Ok(b)
 }

@@ -33,8 +33,26 @@ pub struct Bounds {
 impl Bounds {
     pub fn new(search: &SearchSpace, model: &PhotoModel, log_alpha: bool) -> Self {
         let alpha = [model.l_p / search.size_mm[1], model.l_p / search.size_mm[0]];
-        let lo = [search.x_mm[0], search.y_mm[0], search.z_mm[0], -1.0, -1.0, -1.0, alpha[0], search.aspect_k[0]];
-        let hi = [search.x_mm[1], search.y_mm[1], search.z_mm[1], 1.0, 1.0, 1.0, alpha[1], search.aspect_k[1]];
+        let lo = [
+            search.x_mm[0],
+            search.y_mm[0],
+            search.z_mm[0],
+            -1.0,
+            -1.0,
+            -1.0,
+            alpha[0],
+            search.aspect_k[0],
+        ];
+        let hi = [
+            search.x_mm[1],
+            search.y_mm[1],
+            search.z_mm[1],
+            1.0,
+            1.0,
+            1.0,
+            alpha[1],
+            search.aspect_k[1],
+        ];
         Self { lo, hi, log_alpha }
     }
 
@@ -55,7 +73,16 @@ impl Bounds {
 
     /// Inverse of [`Bounds::decode`] (clamped into the search space).
     pub fn encode(&self, p: &PoseSize) -> Genes {
-        let vals = [p.position.x, p.position.y, p.position.z, p.eps.x, p.eps.y, p.eps.z, p.alpha, p.k];
+        let vals = [
+            p.position.x,
+            p.position.y,
+            p.position.z,
+            p.eps.x,
+            p.eps.y,
+            p.eps.z,
+            p.alpha,
+            p.k,
+        ];
         let mut g = [0.0; GENES];
         for i in 0..GENES {
             g[i] = if i == 6 && self.log_alpha {
@@ -82,7 +109,14 @@ pub struct Problem<'a> {
 
 impl<'a> Problem<'a> {
     /// `stride_per_level` thins the model grid by `2^level` on coarse levels when true.
-    pub fn new(scorer: &'a Scorer, pyramid: &'a FramePyramid, model: &PhotoModel, bounds: Bounds, threads: usize, thin: bool) -> Self {
+    pub fn new(
+        scorer: &'a Scorer,
+        pyramid: &'a FramePyramid,
+        model: &PhotoModel,
+        bounds: Bounds,
+        threads: usize,
+        thin: bool,
+    ) -> Self {
         let points = (0..pyramid.levels.len())
             .map(|l| PointSet::from_model(model, &scorer.params, if thin { 1 << l } else { 1 }))
             .collect();
@@ -107,7 +141,8 @@ impl<'a> Problem<'a> {
     /// Fitness of one candidate on level `l`.
     pub fn evaluate(&self, l: usize, g: &Genes) -> Fitness {
         let l = l.min(self.points.len() - 1);
-        self.scorer.evaluate(&self.points[l], self.level(l), &self.bounds.decode(g))
+        self.scorer
+            .evaluate(&self.points[l], self.level(l), &self.bounds.decode(g))
     }
 
     /// Fitness of many candidates on level `l`, split across the worker threads.
@@ -174,14 +209,26 @@ mod tests {
             format: "photopose-model".into(),
             version: 1,
             photo: "p".into(),
-            bbox: PixelBox { x: 0, y: 0, w: 200, h: 100 },
+            bbox: PixelBox {
+                x: 0,
+                y: 0,
+                w: 200,
+                h: 100,
+            },
             l_p: 200.0,
             b_p: 100.0,
             step_px: 10.0,
             outer_width_px: 10.0,
             mean_hue: 0.0,
+            mean_saturation: 0.0,
             center_class: "chromatic".into(),
-            inner: vec![InnerPoint { x: 0.0, y: 0.0, h: 0, s: 0, v: 0 }],
+            inner: vec![InnerPoint {
+                x: 0.0,
+                y: 0.0,
+                h: 0,
+                s: 0,
+                v: 0,
+            }],
             outer: vec![],
         }
     }

@@ -50,11 +50,19 @@ pub fn mutate(c: &mut Chromosome, rate: f64, rng: &mut impl Rng) {
 }
 
 /// Runs `generations` generations of the binary GA on full-resolution images.
-pub fn run(problem: &Problem, ga: &GaSettings, generations: usize, seed: u64, progress: &mut dyn FnMut(usize)) -> Outcome {
+pub fn run(
+    problem: &Problem,
+    ga: &GaSettings,
+    generations: usize,
+    seed: u64,
+    progress: &mut dyn FnMut(usize),
+) -> Outcome {
     let mut rng = StdRng::seed_from_u64(seed);
     let n = ga.population;
     let keep = ((n as f64 * ga.survivors).round() as usize).clamp(1, n - 1);
-    let mut pop: Vec<Chromosome> = (0..n).map(|_| std::array::from_fn(|_| rng.random_range(0..=MAX))).collect();
+    let mut pop: Vec<Chromosome> = (0..n)
+        .map(|_| std::array::from_fn(|_| rng.random_range(0..=MAX)))
+        .collect();
     let mut gen_buf: Vec<Genes> = pop.iter().map(genes).collect();
     let mut fit = vec![Fitness::default(); n];
     problem.evaluate_batch(0, &gen_buf, &mut fit);

@@ -11,6 +11,8 @@ use rand::{Rng, SeedableRng};
 use super::{rank, snapshot_generations, Genes, Outcome, Problem, Snapshot, GENES};
 use crate::config::{GaSettings, RobustSettings};
 use crate::fitness::Fitness;
+use crate::pose::PoseSize;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// Mutation step (normalised gene units) at the start of full-resolution generations;
 /// each coarser level multiplies it by 3.
@@ -41,6 +43,34 @@ pub fn blend(a: &Genes, b: &Genes, rng: &mut impl Rng) -> Genes {
     })
 }
 
+/// Largest tilt away from facing the camera of a view-sampled candidate, degrees.
+const PRIOR_TILT_DEG: f64 = 45.0;
+
+/// A candidate drawn where the cameras can see it: a random left-image pixel at a random
+/// depth of the search range, roughly facing the camera, random size and aspect. Most of
+/// the hand-frame search box is outside the field of view; this prior is not.
+pub fn view_sample(problem: &Problem, rng: &mut impl Rng) -> Genes {
+    let level = &problem.pyramid.levels[0];
+    let (w, h) = (level.rig.width as f64, level.rig.height as f64);
+    let (u, v) = (rng.random_range(0.05..0.95) * w, rng.random_range(0.05..0.95) * h);
+    let b = &problem.bounds;
+    let z = rng.random_range(b.lo[2]..b.hi[2]);
+    let p = level.rig.left.ray(u, v) * z;
+    let axis_angle = rng.random_range(0.0..std::f64::consts::TAU);
+    let tilt = rng.random_range(0.0..PRIOR_TILT_DEG.to_radians());
+    let roll = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+    let rotation = UnitQuaternion::from_scaled_axis(Vector3::new(axis_angle.cos(), axis_angle.sin(), 0.0) * tilt)
+        * UnitQuaternion::from_scaled_axis(Vector3::z() * roll);
+    let left_from_model = Isometry3::from_parts(Translation3::from(p), rotation);
+    let hand_from_model = problem.scorer.left_from_hand.inverse() * left_from_model;
+    let mut cand = PoseSize::from_pose(&hand_from_model, [1.0, 1.0], 1.0, 1.0);
+    let mut g = b.encode(&cand);
+    g[6] = rng.random();
+    g[7] = rng.random();
+    cand = b.decode(&g);
+    b.encode(&cand)
+}
+
 /// One population: genes and their fitness, sorted best first after [`Population::sort`].
 struct Population {
     genes: Vec<Genes>,
@@ -48,9 +78,9 @@ struct Population {
 }
 
 impl Population {
-    fn random(n: usize, rng: &mut impl Rng) -> Self {
+    fn random(problem: &Problem, n: usize, rng: &mut impl Rng) -> Self {
         Self {
-            genes: (0..n).map(|_| std::array::from_fn(|_| rng.random())).collect(),
+            genes: (0..n).map(|_| view_sample(problem, rng)).collect(),
             fit: vec![Fitness::default(); n],
         }
     }
@@ -62,10 +92,18 @@ impl Population {
     }
 
     /// Replaces everything after the first `keep` by children of the survivors.
-    fn breed(&mut self, keep: usize, ga: &GaSettings, sigma: f64, immigrants: f64, rng: &mut impl Rng) {
+    fn breed(
+        &mut self,
+        problem: &Problem,
+        keep: usize,
+        ga: &GaSettings,
+        sigma: f64,
+        immigrants: f64,
+        rng: &mut impl Rng,
+    ) {
         for i in keep..self.genes.len() {
             self.genes[i] = if rng.random::<f64>() < immigrants {
-                std::array::from_fn(|_| rng.random())
+                view_sample(problem, rng)
             } else {
                 let a = self.genes[rng.random_range(0..keep)];
                 let mut child = if rng.random::<f64>() < ga.crossover_rate {
@@ -83,7 +121,10 @@ impl Population {
 /// Generations per level, coarsest first, summing to `total`.
 fn schedule(total: usize, share: &[f64]) -> Vec<usize> {
     let sum: f64 = share.iter().sum();
-    let mut out: Vec<usize> = share.iter().map(|s| (total as f64 * s / sum).round() as usize).collect();
+    let mut out: Vec<usize> = share
+        .iter()
+        .map(|s| (total as f64 * s / sum).round() as usize)
+        .collect();
     let assigned: usize = out.iter().take(out.len() - 1).sum();
     if let Some(last) = out.last_mut() {
         *last = total.saturating_sub(assigned);
@@ -106,7 +147,9 @@ pub fn run(
     let levels = problem.pyramid.levels.len().min(robust.pyramid_levels);
     let plan = schedule(generations, &robust.level_share[robust.level_share.len() - levels..]);
     let coarsest = levels - 1;
-    let mut pops: Vec<Population> = (0..robust.restarts).map(|_| Population::random(n, &mut rng)).collect();
+    let mut pops: Vec<Population> = (0..robust.restarts)
+        .map(|_| Population::random(problem, n, &mut rng))
+        .collect();
     let mut order = Vec::with_capacity(n * robust.restarts);
     let mut batch: Vec<Genes> = Vec::with_capacity(n * robust.restarts);
     let mut batch_fit: Vec<Fitness> = Vec::with_capacity(n * robust.restarts);
@@ -138,12 +181,16 @@ pub fn run(
         let level = coarsest - step;
         evaluate(&mut pops, level, 0, &mut evaluations);
         let sigma0 = SIGMA_FULL * 3f64.powi(level as i32);
-        let immigrants = if level == coarsest && levels > 1 { robust.immigrants } else { 0.0 };
+        let immigrants = if level == coarsest && levels > 1 {
+            robust.immigrants
+        } else {
+            0.0
+        };
         for g in 0..gens {
             let sigma = sigma0 * (1.0 - 0.66 * g as f64 / gens.max(1) as f64);
             for p in pops.iter_mut() {
                 p.sort(&mut order);
-                p.breed(keep, ga, sigma, immigrants, &mut rng);
+                p.breed(problem, keep, ga, sigma, immigrants, &mut rng);
             }
             evaluate(&mut pops, level, keep, &mut evaluations);
             generation += 1;
@@ -219,7 +266,10 @@ fn refine(problem: &Problem, start: Genes, budget: usize, rng: &mut impl Rng) ->
         }
         problem.evaluate_batch(0, &kids, &mut fit);
         used += lambda;
-        let (i, f) = fit.iter().enumerate().fold((0, fit[0]), |acc, (i, f)| if f.f > acc.1.f { (i, *f) } else { acc });
+        let (i, f) = fit
+            .iter()
+            .enumerate()
+            .fold((0, fit[0]), |acc, (i, f)| if f.f > acc.1.f { (i, *f) } else { acc });
         if f.f > best_fit.f {
             best = kids[i];
             best_fit = f;

@@ -44,17 +44,12 @@ impl Background {
         };
         let width_mm = 2.0 * HALF_TAN_X * d + 2.0 * MARGIN_MM;
         let height_mm = 2.0 * HALF_TAN_Y * d + 2.0 * MARGIN_MM;
-        let texel_mm = (d / TEXELS_PER_RAD)
-            .max(width_mm / MAX_W)
-            .max(height_mm / MAX_H);
+        let texel_mm = (d / TEXELS_PER_RAD).max(width_mm / MAX_W).max(height_mm / MAX_H);
         let w = (width_mm / texel_mm).ceil().max(1.0) as u32;
         let h = (height_mm / texel_mm).ceil().max(1.0) as u32;
         let mut rng = StdRng::seed_from_u64(seed ^ 0x6261_636b_6772_6f75);
 
-        let usable: Vec<&RgbImage> = photos
-            .iter()
-            .filter(|p| p.width() > 0 && p.height() > 0)
-            .collect();
+        let usable: Vec<&RgbImage> = photos.iter().filter(|p| p.width() > 0 && p.height() > 0).collect();
         let procedural: Vec<RgbImage>;
         let sources: Vec<&RgbImage> = if usable.is_empty() {
             procedural = (0..6).map(|_| procedural_poster(&mut rng)).collect();
@@ -63,7 +58,7 @@ impl Background {
             usable
         };
         let textures: Vec<MipTexture> = sources.iter().map(|p| MipTexture::new(p)).collect();
-        let posters = plan_posters(&sources, w as f64, h as f64, &mut rng);
+        let posters = plan_posters(&sources, w as f64, h as f64, d / texel_mm, &mut rng);
         let light = Lighting {
             gx: rng.random_range(-0.2..0.2),
             gy: rng.random_range(-0.2..0.2),
@@ -141,14 +136,15 @@ impl Background {
     pub(crate) fn sample(&self, x: f64, y: f64, footprint_mm: f64) -> [f32; 3] {
         let u = x / self.texel_mm + 0.5 * self.mip.width();
         let v = y / self.texel_mm + 0.5 * self.mip.height();
-        self.mip
-            .sample(u, v, footprint_mm / self.texel_mm, Wrap::Mirror)
+        self.mip.sample(u, v, footprint_mm / self.texel_mm, Wrap::Mirror)
     }
 }
 
-/// One photo pinned to the wall (all lengths in canvas texels).
+/// One photo (or a crop of it) pinned to the wall; lengths in canvas texels.
 struct Poster {
     src: usize,
+    /// Crop of the source photo: top-left and size, photo texels.
+    crop: [f64; 4],
     cx: f64,
     cy: f64,
     cos: f64,
@@ -160,11 +156,20 @@ struct Poster {
     half_h: f64,
     border: f64,
     paper: [u8; 3],
-    /// Bounding rows (inclusive start, exclusive end).
-    y0: usize,
-    y1: usize,
+    /// Bounding box (inclusive start, exclusive end).
     x0: usize,
     x1: usize,
+    y0: usize,
+    y1: usize,
+}
+
+impl Poster {
+    /// Canvas point `(x, y)` in poster coordinates (centre origin, unrotated).
+    #[inline]
+    fn local(&self, x: f64, y: f64) -> (f64, f64) {
+        let (qx, qy) = (x - self.cx, y - self.cy);
+        (self.cos * qx + self.sin * qy, -self.sin * qx + self.cos * qy)
+    }
 }
 
 struct Lighting {
@@ -173,79 +178,98 @@ struct Lighting {
     vignette: f64,
 }
 
-/// Places posters on a jittered grid (guaranteeing full coverage), in random order, then a
-/// few more anywhere for extra overlap.
-fn plan_posters(sources: &[&RgbImage], w: f64, h: f64, rng: &mut StdRng) -> Vec<Poster> {
-    let cell = 0.2 * h;
+/// Places posters in random order at not yet covered spots of a coarse grid until every
+/// grid point is covered, then some more anywhere on top (clutter). Poster sizes are
+/// log-uniform, their shorter side 8–35 % of the wall distance (`d_tex`, in texels).
+fn plan_posters(sources: &[&RgbImage], w: f64, h: f64, d_tex: f64, rng: &mut StdRng) -> Vec<Poster> {
+    let cell = (0.03 * d_tex).max(2.0);
     let cols = (w / cell).ceil().max(1.0) as usize;
     let rows = (h / cell).ceil().max(1.0) as usize;
-    let mut centres: Vec<(f64, f64)> = Vec::with_capacity(cols * rows);
-    for r in 0..rows {
-        for c in 0..cols {
-            centres.push(((c as f64 + 0.5) * cell, (r as f64 + 0.5) * cell));
-        }
-    }
-    // Fisher–Yates shuffle for random overlap order.
-    for i in (1..centres.len()).rev() {
+    let mut covered = vec![false; cols * rows];
+    let mut order: Vec<usize> = (0..cols * rows).collect();
+    // Fisher–Yates shuffle: random stacking order.
+    for i in (1..order.len()).rev() {
         let j = rng.random_range(0..=i);
-        centres.swap(i, j);
+        order.swap(i, j);
     }
-    let extra = (centres.len() / 3).max(1);
-    let mut posters = Vec::with_capacity(centres.len() + extra);
-    for k in 0..centres.len() + extra {
-        let (cx, cy) = if k < centres.len() {
-            let (cx, cy) = centres[k];
-            let j = 0.03 * h;
-            (
-                cx + rng.random_range(-j..j),
-                cy + rng.random_range(-j..j),
-            )
-        } else {
-            (rng.random_range(0.0..w), rng.random_range(0.0..h))
-        };
-        let src = rng.random_range(0..sources.len());
-        let (pw, ph) = (
-            sources[src].width() as f64,
-            sources[src].height() as f64,
-        );
-        // The shorter side spans 30–50 % of the wall height: with the grid pitch of 20 %,
-        // a ±3 % jitter and a tilt of at most 8°, every wall texel is covered.
-        let min_side = rng.random_range(0.3..0.5) * h;
-        let scale = min_side / pw.min(ph);
-        let angle = rng.random_range(-8.0f64..8.0).to_radians();
-        let (sin, cos) = angle.sin_cos();
-        let half_w = 0.5 * pw * scale;
-        let half_h = 0.5 * ph * scale;
-        let border = rng.random_range(0.0..0.04) * min_side;
-        let grey = rng.random_range(215u8..=245);
-        let paper = [grey, grey, grey.saturating_sub(rng.random_range(0..12))];
-        let ext_x = half_w + border;
-        let ext_y = half_h + border;
-        let bx = ext_x * cos.abs() + ext_y * sin.abs();
-        let by = ext_x * sin.abs() + ext_y * cos.abs();
-        let clampi = |v: f64, hi: f64| v.clamp(0.0, hi) as usize;
-        posters.push(Poster {
-            src,
-            cx,
-            cy,
-            cos,
-            sin,
-            scale,
-            flip: rng.random::<f64>() < 0.3,
-            half_w,
-            half_h,
-            border,
-            paper,
-            x0: clampi((cx - bx).floor(), w),
-            x1: clampi((cx + bx).ceil() + 1.0, w),
-            y0: clampi((cy - by).floor(), h),
-            y1: clampi((cy + by).ceil() + 1.0, h),
-        });
+    let mut posters = Vec::new();
+    for idx in order {
+        if covered[idx] {
+            continue;
+        }
+        let (c, r) = (idx % cols, idx / cols);
+        let cx = (c as f64 + rng.random_range(0.0..1.0)) * cell;
+        let cy = (r as f64 + rng.random_range(0.0..1.0)) * cell;
+        let p = poster(sources, cx, cy, w, h, d_tex, rng);
+        // Mark the grid points the poster covers (always including its own cell).
+        covered[idx] = true;
+        let (c0, c1) = ((p.x0 as f64 / cell) as usize, (p.x1 as f64 / cell) as usize + 1);
+        let (r0, r1) = ((p.y0 as f64 / cell) as usize, (p.y1 as f64 / cell) as usize + 1);
+        for rr in r0..r1.min(rows) {
+            for cc in c0..c1.min(cols) {
+                let (lx, ly) = p.local((cc as f64 + 0.5) * cell, (rr as f64 + 0.5) * cell);
+                if lx.abs() <= p.half_w + p.border && ly.abs() <= p.half_h + p.border {
+                    covered[rr * cols + cc] = true;
+                }
+            }
+        }
+        posters.push(p);
+    }
+    for _ in 0..posters.len() / 4 {
+        let (cx, cy) = (rng.random_range(0.0..w), rng.random_range(0.0..h));
+        posters.push(poster(sources, cx, cy, w, h, d_tex, rng));
     }
     posters
 }
 
-/// Draws all posters and the lighting into rows `y0..` of the canvas.
+/// A random poster centred at `(cx, cy)`.
+fn poster(sources: &[&RgbImage], cx: f64, cy: f64, w: f64, h: f64, d_tex: f64, rng: &mut StdRng) -> Poster {
+    let src = rng.random_range(0..sources.len());
+    let (pw, ph) = (sources[src].width() as f64, sources[src].height() as f64);
+    // A random crop of 50–100 % of each side (varies content and aspect).
+    let cw = pw * rng.random_range(0.5..=1.0);
+    let ch = ph * rng.random_range(0.5..=1.0);
+    let crop = [rng.random_range(0.0..=pw - cw), rng.random_range(0.0..=ph - ch), cw, ch];
+    let min_side = d_tex * rng.random_range(0.08f64.ln()..0.35f64.ln()).exp();
+    let scale = min_side / cw.min(ch);
+    let angle = rng.random_range(-8.0f64..8.0).to_radians();
+    let (sin, cos) = angle.sin_cos();
+    let half_w = 0.5 * cw * scale;
+    let half_h = 0.5 * ch * scale;
+    let border = if rng.random::<f64>() < 0.6 {
+        rng.random_range(0.02..0.06) * min_side
+    } else {
+        0.0
+    };
+    let grey = rng.random_range(215u8..=245);
+    let paper = [grey, grey, grey.saturating_sub(rng.random_range(0..12))];
+    let ext_x = half_w + border;
+    let ext_y = half_h + border;
+    let bx = ext_x * cos.abs() + ext_y * sin.abs();
+    let by = ext_x * sin.abs() + ext_y * cos.abs();
+    let clampi = |v: f64, hi: f64| v.clamp(0.0, hi) as usize;
+    Poster {
+        src,
+        crop,
+        cx,
+        cy,
+        cos,
+        sin,
+        scale,
+        flip: rng.random::<f64>() < 0.3,
+        half_w,
+        half_h,
+        border,
+        paper,
+        x0: clampi((cx - bx).floor(), w),
+        x1: clampi((cx + bx).ceil() + 1.0, w),
+        y0: clampi((cy - by).floor(), h),
+        y1: clampi((cy + by).ceil() + 1.0, h),
+    }
+}
+
+/// Draws rows `y0..` of the canvas: posters front to back (each texel is sampled once),
+/// the board colour where none lands, then the lighting.
 #[allow(clippy::too_many_arguments)]
 fn draw_band(
     chunk: &mut [u8],
@@ -259,41 +283,45 @@ fn draw_band(
 ) {
     let w = w as usize;
     let rows = chunk.len() / (w * 3);
-    for px in chunk.chunks_exact_mut(3) {
-        px.copy_from_slice(&base);
-    }
-    for p in posters {
+    let mut done = vec![false; w * rows];
+    for p in posters.iter().rev() {
         let tex = &textures[p.src];
-        let (pw, ph) = (tex.width(), tex.height());
-        let footprint = 1.0 / p.scale;
+        // Baked once: the nearest power-of-two mip level is plenty.
+        let footprint = (1.0 / p.scale).log2().round().exp2();
         let ys = p.y0.max(y0);
         let ye = p.y1.min(y0 + rows);
+        let [sx, sy, cw, ch] = p.crop;
         for y in ys..ye {
-            let qy = y as f64 + 0.5 - p.cy;
-            let row = &mut chunk[(y - y0) * w * 3..(y - y0 + 1) * w * 3];
+            let r = y - y0;
             for x in p.x0..p.x1 {
-                let qx = x as f64 + 0.5 - p.cx;
-                // Rotate the canvas offset into the poster frame.
-                let lx = p.cos * qx + p.sin * qy;
-                let ly = -p.sin * qx + p.cos * qy;
+                if done[r * w + x] {
+                    continue;
+                }
+                let (lx, ly) = p.local(x as f64 + 0.5, y as f64 + 0.5);
                 if lx.abs() > p.half_w + p.border || ly.abs() > p.half_h + p.border {
                     continue;
                 }
-                let o = x * 3;
+                done[r * w + x] = true;
+                let o = (r * w + x) * 3;
                 if lx.abs() > p.half_w || ly.abs() > p.half_h {
-                    row[o..o + 3].copy_from_slice(&p.paper);
+                    chunk[o..o + 3].copy_from_slice(&p.paper);
                     continue;
                 }
-                let mut u = lx / p.scale + 0.5 * pw;
-                let v = ly / p.scale + 0.5 * ph;
+                let mut u = lx / p.scale + 0.5 * cw;
                 if p.flip {
-                    u = pw - u;
+                    u = cw - u;
                 }
-                let c = tex.sample(u, v, footprint, Wrap::Clamp);
+                let v = ly / p.scale + 0.5 * ch;
+                let c = tex.sample(sx + u, sy + v, footprint, Wrap::Clamp);
                 for k in 0..3 {
-                    row[o + k] = c[k].round().clamp(0.0, 255.0) as u8;
+                    chunk[o + k] = (c[k].clamp(0.0, 255.0) + 0.5) as u8;
                 }
             }
+        }
+    }
+    for (px, &d) in chunk.chunks_exact_mut(3).zip(&done) {
+        if !d {
+            px.copy_from_slice(&base);
         }
     }
     let (wf, hf) = (w as f64, h as f64);
@@ -304,7 +332,7 @@ fn draw_band(
             let f = 1.0 + light.gx * nx + light.gy * ny - 2.0 * light.vignette * (nx * nx + ny * ny);
             let o = (r * w + x) * 3;
             for k in 0..3 {
-                chunk[o + k] = (chunk[o + k] as f64 * f).round().clamp(0.0, 255.0) as u8;
+                chunk[o + k] = (chunk[o + k] as f64 * f).clamp(0.0, 255.0).round() as u8;
             }
         }
     }
@@ -315,8 +343,8 @@ fn mean_colour(sources: &[&RgbImage]) -> [u8; 3] {
     let mut n = 0.0;
     for img in sources {
         for p in img.pixels().step_by(7) {
-            for k in 0..3 {
-                sum[k] += p.0[k] as f64;
+            for (s, &c) in sum.iter_mut().zip(&p.0) {
+                *s += c as f64;
             }
             n += 1.0;
         }

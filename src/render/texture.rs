@@ -19,6 +19,9 @@ pub(crate) enum Wrap {
 struct Level {
     w: usize,
     h: usize,
+    /// Level texels per level-0 texel, along x and y.
+    sx: f64,
+    sy: f64,
     data: Vec<u8>,
 }
 
@@ -35,12 +38,16 @@ impl MipTexture {
             Level {
                 w: 1,
                 h: 1,
+                sx: 1.0,
+                sy: 1.0,
                 data: vec![128, 128, 128],
             }
         } else {
             Level {
                 w: img.width() as usize,
                 h: img.height() as usize,
+                sx: 1.0,
+                sy: 1.0,
                 data: img.as_raw().clone(),
             }
         };
@@ -50,7 +57,9 @@ impl MipTexture {
             if prev.w == 1 && prev.h == 1 {
                 break;
             }
-            let next = downsample(prev);
+            let mut next = downsample(prev);
+            next.sx = next.w as f64 / levels[0].w as f64;
+            next.sy = next.h as f64 / levels[0].h as f64;
             levels.push(next);
         }
         Self { levels }
@@ -71,7 +80,7 @@ impl MipTexture {
     #[inline]
     pub(crate) fn sample(&self, u: f64, v: f64, footprint: f64, wrap: Wrap) -> [f32; 3] {
         let lod = if footprint.is_finite() && footprint > 1.0 {
-            footprint.log2()
+            fast_log2(footprint)
         } else {
             0.0
         };
@@ -93,47 +102,69 @@ impl MipTexture {
 
     #[inline]
     fn bilinear(&self, level: usize, u: f64, v: f64, wrap: Wrap) -> [f32; 3] {
-        let base = &self.levels[0];
         let lv = &self.levels[level];
         // Level coordinates, then shift so that integers are texel centres.
-        let x = u * (lv.w as f64 / base.w as f64) - 0.5;
-        let y = v * (lv.h as f64 / base.h as f64) - 0.5;
+        let x = u * lv.sx - 0.5;
+        let y = v * lv.sy - 0.5;
         if !x.is_finite() || !y.is_finite() {
             return [0.0; 3];
         }
         let x = x.clamp(-1e9, 1e9);
         let y = y.clamp(-1e9, 1e9);
-        let x0 = x.floor();
-        let y0 = y.floor();
-        let fx = (x - x0) as f32;
-        let fy = (y - y0) as f32;
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let xa = wrap_index(x0, lv.w, wrap);
-        let xb = wrap_index(x0 + 1, lv.w, wrap);
-        let ya = wrap_index(y0, lv.h, wrap);
-        let yb = wrap_index(y0 + 1, lv.h, wrap);
-        let px = |xi: usize, yi: usize| -> [f32; 3] {
-            let o = (yi * lv.w + xi) * 3;
-            [
-                lv.data[o] as f32,
-                lv.data[o + 1] as f32,
-                lv.data[o + 2] as f32,
-            ]
+        let (x0, y0) = (floor_i64(x), floor_i64(y));
+        let fx = (x - x0 as f64) as f32;
+        let fy = (y - y0 as f64) as f32;
+        let xa = wrap_index(x0, lv.w, wrap) * 3;
+        let xb = wrap_index(x0 + 1, lv.w, wrap) * 3;
+        let ra = wrap_index(y0, lv.h, wrap) * lv.w * 3;
+        let rb = wrap_index(y0 + 1, lv.h, wrap) * lv.w * 3;
+        let d = lv.data.as_slice();
+        let (Some(p00), Some(p10), Some(p01), Some(p11)) = (
+            d.get(ra + xa..ra + xa + 3),
+            d.get(ra + xb..ra + xb + 3),
+            d.get(rb + xa..rb + xa + 3),
+            d.get(rb + xb..rb + xb + 3),
+        ) else {
+            return [0.0; 3];
         };
-        let (p00, p10, p01, p11) = (px(xa, ya), px(xb, ya), px(xa, yb), px(xb, yb));
+        let w11 = fx * fy;
+        let w10 = fx - w11;
+        let w01 = fy - w11;
+        let w00 = 1.0 - fx - w01;
         let mut out = [0.0f32; 3];
         for c in 0..3 {
-            let top = p00[c] + (p10[c] - p00[c]) * fx;
-            let bot = p01[c] + (p11[c] - p01[c]) * fx;
-            out[c] = top + (bot - top) * fy;
+            out[c] = w00 * p00[c] as f32 + w10 * p10[c] as f32 + w01 * p01[c] as f32 + w11 * p11[c] as f32;
         }
         out
     }
 }
 
+/// `floor` without a libm call (`|x| <= 1e9`).
+#[inline]
+fn floor_i64(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x {
+        t - 1
+    } else {
+        t
+    }
+}
+
+/// Piecewise-linear `log2` (exact at powers of two, error < 0.09): mip selection only.
+#[inline]
+fn fast_log2(x: f64) -> f64 {
+    let bits = x.to_bits();
+    let exp = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    let mantissa = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    exp as f64 + (mantissa - 1.0)
+}
+
 #[inline]
 fn wrap_index(i: i64, n: usize, wrap: Wrap) -> usize {
     let n = n as i64;
+    if (0..n).contains(&i) {
+        return i as usize;
+    }
     match wrap {
         Wrap::Clamp => i.clamp(0, n - 1) as usize,
         Wrap::Mirror => {
@@ -163,7 +194,13 @@ fn downsample(src: &Level) -> Level {
             }
         }
     }
-    Level { w, h, data }
+    Level {
+        w,
+        h,
+        sx: 1.0,
+        sy: 1.0,
+        data,
+    }
 }
 
 #[cfg(test)]

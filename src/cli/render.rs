@@ -1,0 +1,71 @@
+//! `photopose render`: renders a synthetic side-by-side ZED frame from a scene file and
+//! optionally writes the ground-truth pose as JSON.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+
+use crate::calibration::Resolution;
+use crate::render::{self, ResolutionName, SceneSpec};
+
+/// Render a synthetic stereo frame of a photo card.
+#[derive(clap::Args, Debug)]
+pub struct RenderArgs {
+    /// Scene description (TOML).
+    #[arg(long, value_name = "SCENE.toml")]
+    pub scene: PathBuf,
+    /// Output side-by-side frame (PNG).
+    #[arg(short, long, value_name = "FRAME.png")]
+    pub output: PathBuf,
+    /// Also write the true pose and size (hand frame) as JSON.
+    #[arg(long, value_name = "TRUTH.json")]
+    pub truth: Option<PathBuf>,
+    /// Configuration file (calibration, left_from_hand); built-in defaults otherwise.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+}
+
+/// Runs the `render` command.
+pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
+    let config = crate::config::Config::load(args.config.as_deref())?;
+    let spec = SceneSpec::load(&args.scene)?;
+    let resolution = match spec.resolution {
+        ResolutionName::R2K => Resolution::R2K,
+        ResolutionName::FHD => Resolution::FHD,
+        ResolutionName::HD => Resolution::HD,
+        ResolutionName::VGA => Resolution::VGA,
+    };
+    let rig = config.calibration.rig(resolution)?;
+    let scene = spec.build(&config.left_from_hand)?;
+    let frame = render::render(&rig, &config.left_from_hand, &scene);
+
+    create_parent(&args.output)?;
+    frame
+        .save_with_format(&args.output, image::ImageFormat::Png)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    let mut written = format!(
+        "wrote {} ({}×{}, {})",
+        args.output.display(),
+        frame.width(),
+        frame.height(),
+        spec.resolution.as_str()
+    );
+    if let Some(truth) = &args.truth {
+        let json = render::scene::truth_json(&spec.hand_from_model, spec.size_mm);
+        create_parent(truth)?;
+        let text = serde_json::to_string_pretty(&json)?;
+        std::fs::write(truth, text + "\n").with_context(|| format!("cannot write {}", truth.display()))?;
+        written.push_str(&format!(" and truth {}", truth.display()));
+    }
+    println!("{written}");
+    Ok(())
+}
+
+fn create_parent(path: &Path) -> anyhow::Result<()> {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create directory {}", dir.display()))
+        }
+        _ => Ok(()),
+    }
+}

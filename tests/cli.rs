@@ -1,0 +1,229 @@
+//! The `photopose` binary: the model → estimate pipeline on a rendered frame, the exact
+//! JSON contract, reproducibility, and one-line errors on bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use crate::scenes::data;
+
+fn photopose(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_photopose"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("run photopose")
+}
+
+fn repo(rel: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel).display().to_string()
+}
+
+/// A fresh scratch directory under the target dir, removed by the caller's `cleanup`.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("target/test-scratch")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Asserts failure with exactly one stderr line containing every needle.
+fn fails_with(out: &Output, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure, got success: {err}");
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line expected: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    for n in needles {
+        assert!(err.contains(n), "{n:?} missing from: {err}");
+    }
+}
+
+#[test]
+fn render_model_estimate_pipeline_writes_the_json_contract() {
+    let dir = scratch("pipeline");
+    let p = |f: &str| dir.join(f).display().to_string();
+    let out = photopose(&[
+        "render",
+        "--scene",
+        &repo("config/scenes/coffee.toml"),
+        "-o",
+        &p("frame.png"),
+        "--truth",
+        &p("truth.json"),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = photopose(&[
+        "model",
+        "--photo",
+        &data("photos/coffee.jpg").display().to_string(),
+        "--box",
+        "149,22,279,289",
+        "-o",
+        &p("cup.model"),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let run = |json: &str| {
+        let args = [
+            "estimate",
+            "--model",
+            &p("cup.model"),
+            "--sbs",
+            &p("frame.png"),
+            "--generations",
+            "120",
+            "--seed",
+            "7",
+            "--json",
+            json,
+        ];
+        let out = photopose(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).to_string()
+    };
+    let table = run(&p("a.json"));
+    // Table 2 layout: a header and rows for generation 100 and the last one.
+    assert!(table.contains("generation") && table.contains("F"), "{table}");
+    assert!(table.lines().any(|l| l.trim_start().starts_with("100 ")), "{table}");
+    assert!(table.lines().any(|l| l.trim_start().starts_with("120 ")), "{table}");
+    let a: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(p("a.json")).unwrap()).unwrap();
+    let keys: Vec<&str> = a.as_object().unwrap().keys().map(String::as_str).collect();
+    let mut expected = vec![
+        "position_mm",
+        "orientation_wxyz",
+        "size_mm",
+        "alpha",
+        "k",
+        "fitness",
+        "fitness_left",
+        "fitness_right",
+        "generations",
+        "frame",
+    ];
+    let mut got = keys.clone();
+    got.sort();
+    expected.sort();
+    assert_eq!(got, expected);
+    assert_eq!(a["frame"], "hand");
+    assert_eq!(a["generations"], 120);
+    assert_eq!(a["position_mm"].as_array().unwrap().len(), 3);
+    let q: Vec<f64> = a["orientation_wxyz"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(q[0] >= 0.0 && (q.iter().map(|v| v * v).sum::<f64>() - 1.0).abs() < 1e-9);
+    // Same seed, same result.
+    run(&p("b.json"));
+    assert_eq!(
+        std::fs::read_to_string(p("a.json")).unwrap(),
+        std::fs::read_to_string(p("b.json")).unwrap()
+    );
+    let truth: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(p("truth.json")).unwrap()).unwrap();
+    assert_eq!(truth["frame"], "hand");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_input_gives_one_line_naming_the_file() {
+    let dir = scratch("bad-input");
+    let p = |f: &str| dir.join(f).display().to_string();
+    let coffee = data("photos/coffee.jpg").display().to_string();
+    // A valid model and a frame whose size matches no calibration section.
+    assert!(photopose(&[
+        "model",
+        "--photo",
+        &coffee,
+        "--box",
+        "149,22,279,289",
+        "-o",
+        &p("cup.model")
+    ])
+    .status
+    .success());
+    image::RgbImage::new(2000, 500).save(p("odd-size.png")).unwrap();
+    fails_with(
+        &photopose(&["estimate", "--model", &p("cup.model"), "--sbs", &p("odd-size.png")]),
+        &["SN-example.conf", "1000x500", "matches no ZED resolution"],
+    );
+    // Missing and corrupt frames.
+    fails_with(
+        &photopose(&["estimate", "--model", &p("cup.model"), "--sbs", &p("missing.png")]),
+        &["missing.png"],
+    );
+    std::fs::write(p("corrupt.png"), b"\x89PNG\r\n\x1a\n garbage").unwrap();
+    fails_with(
+        &photopose(&["estimate", "--model", &p("cup.model"), "--sbs", &p("corrupt.png")]),
+        &["corrupt.png"],
+    );
+    // A box outside the photo, a malformed box, a corrupt model.
+    fails_with(
+        &photopose(&[
+            "model",
+            "--photo",
+            &coffee,
+            "--box",
+            "500,300,200,200",
+            "-o",
+            &p("x.model"),
+        ]),
+        &["coffee.jpg", "does not lie inside the 600x400 photo"],
+    );
+    fails_with(
+        &photopose(&["model", "--photo", &coffee, "--box", "1,2,3", "-o", &p("x.model")]),
+        &["--box", "four integers"],
+    );
+    std::fs::write(p("broken.model"), "{").unwrap();
+    fails_with(
+        &photopose(&["estimate", "--model", &p("broken.model"), "--sbs", &p("odd-size.png")]),
+        &["broken.model"],
+    );
+    // Malformed configuration and calibration.
+    for (name, needle) in [
+        ("invalid-inverted-range.toml", "z_mm"),
+        ("invalid-nan.toml", "x_mm"),
+        ("invalid-syntax.toml", "line 3"),
+    ] {
+        let cfg = data(&format!("config/{name}")).display().to_string();
+        fails_with(
+            &photopose(&[
+                "model",
+                "--photo",
+                &coffee,
+                "--box",
+                "149,22,279,289",
+                "-o",
+                &p("x.model"),
+                "--config",
+                &cfg,
+            ]),
+            &[name, needle],
+        );
+    }
+    std::fs::write(
+        p("bad-cal.toml"),
+        format!(
+            "[camera]\ncalibration = {:?}\n",
+            data("calibration/invalid-not-a-number.conf")
+        ),
+    )
+    .unwrap();
+    fails_with(
+        &photopose(&[
+            "model",
+            "--photo",
+            &coffee,
+            "--box",
+            "149,22,279,289",
+            "-o",
+            &p("x.model"),
+            "--config",
+            &p("bad-cal.toml"),
+        ]),
+        &["invalid-not-a-number.conf"],
+    );
+    assert!(!Path::new(&p("x.model")).exists(), "nothing written on error");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,0 +1,6 @@
+//! photopose integration tests: one binary, a module per area; fixtures are found
+//! through `CARGO_MANIFEST_DIR`.
+
+mod accuracy;
+mod cli;
+mod scenes;
