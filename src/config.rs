@@ -139,6 +139,13 @@ pub struct GaSettings {
     pub threads: usize,
 }
 
+impl GaSettings {
+    /// How many of the population survive each generation (at least 1, at most all but 1).
+    pub fn survivor_count(&self) -> usize {
+        ((self.population as f64 * self.survivors).round() as usize).clamp(1, self.population.saturating_sub(1).max(1))
+    }
+}
+
 impl Default for GaSettings {
     fn default() -> Self {
         Self {
@@ -164,6 +171,9 @@ pub struct RobustSettings {
     pub level_share: Vec<f64>,
     /// Independent populations started on the coarsest level; the best continues.
     pub restarts: usize,
+    /// Each coarse population starts as the best of `prior_samples × population`
+    /// view-prior candidates.
+    pub prior_samples: usize,
     /// Fraction of each new generation that is random immigrants on the coarsest level.
     pub immigrants: f64,
     /// Evaluations of the final local refinement at full resolution.
@@ -182,6 +192,7 @@ impl Default for RobustSettings {
             pyramid_levels: 3,
             level_share: vec![0.5, 0.25, 0.25],
             restarts: 4,
+            prior_samples: 20,
             immigrants: 0.1,
             refine_evaluations: 600,
             min_facing_cos: 0.3,

@@ -73,11 +73,23 @@ pub fn run(
     progress: &mut dyn FnMut(usize),
 ) -> Result<Outcome, CalibrationError> {
     let prepared = Prepared::new(model, images, config)?;
+    Ok(search(&prepared, model, config, generations, seed, progress))
+}
+
+/// Runs the configured GA on an already prepared frame.
+pub fn search(
+    prepared: &Prepared,
+    model: &PhotoModel,
+    config: &Config,
+    generations: usize,
+    seed: u64,
+    progress: &mut dyn FnMut(usize),
+) -> Outcome {
     let problem = prepared.problem(model, config);
-    Ok(match prepared.mode {
+    match prepared.mode {
         Mode::Paper => ga::paper::run(&problem, &config.ga, generations, seed, progress),
         Mode::Robust => ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress),
-    })
+    }
 }
 
 /// The `--json` report: exactly the fields of the estimate contract.

@@ -28,6 +28,21 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
+/// `photopose model` of the coffee cup with a given configuration file.
+fn model_with_config(photo: &str, output: &str, config: &str) -> Output {
+    photopose(&[
+        "model",
+        "--photo",
+        photo,
+        "--box",
+        "149,22,279,289",
+        "-o",
+        output,
+        "--config",
+        config,
+    ])
+}
+
 /// Asserts failure with exactly one stderr line containing every needle.
 fn fails_with(out: &Output, needles: &[&str]) {
     let err = String::from_utf8_lossy(&out.stderr);
@@ -187,41 +202,12 @@ fn bad_input_gives_one_line_naming_the_file() {
         ("invalid-syntax.toml", "line 3"),
     ] {
         let cfg = data(&format!("config/{name}")).display().to_string();
-        fails_with(
-            &photopose(&[
-                "model",
-                "--photo",
-                &coffee,
-                "--box",
-                "149,22,279,289",
-                "-o",
-                &p("x.model"),
-                "--config",
-                &cfg,
-            ]),
-            &[name, needle],
-        );
+        fails_with(&model_with_config(&coffee, &p("x.model"), &cfg), &[name, needle]);
     }
-    std::fs::write(
-        p("bad-cal.toml"),
-        format!(
-            "[camera]\ncalibration = {:?}\n",
-            data("calibration/invalid-not-a-number.conf")
-        ),
-    )
-    .unwrap();
+    let cal = data("calibration/invalid-not-a-number.conf");
+    std::fs::write(p("bad-cal.toml"), format!("[camera]\ncalibration = {cal:?}\n")).unwrap();
     fails_with(
-        &photopose(&[
-            "model",
-            "--photo",
-            &coffee,
-            "--box",
-            "149,22,279,289",
-            "-o",
-            &p("x.model"),
-            "--config",
-            &p("bad-cal.toml"),
-        ]),
+        &model_with_config(&coffee, &p("x.model"), &p("bad-cal.toml")),
         &["invalid-not-a-number.conf"],
     );
     assert!(!Path::new(&p("x.model")).exists(), "nothing written on error");

@@ -49,16 +49,17 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         (None, Some(l), Some(r)) => StereoImages::load_pair(l, r)?,
         _ => bail!("give the frame as --sbs FRAME or as --left L --right R"),
     };
-    let generations = args.generations.unwrap_or(config.ga.generations).max(1);
+    let generations = args.generations.unwrap_or(config.ga.generations);
     if generations == 0 {
         bail!("--generations must be at least 1");
     }
     let seed = args.seed.unwrap_or(config.ga.seed);
     let bar = super::progress_bar(generations as u64, "generations");
     let start = Instant::now();
-    let outcome = estimate::run(&model, &images, &config, generations, seed, &mut |g| {
+    let prepared = Prepared::new(&model, &images, &config)?;
+    let outcome = estimate::search(&prepared, &model, &config, generations, seed, &mut |g| {
         bar.set_position(g as u64)
-    })?;
+    });
     bar.finish_and_clear();
     let elapsed = start.elapsed().as_secs_f64();
     print!("{}", estimate::table(&model, &outcome));
@@ -72,7 +73,6 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         println!("wrote {}", path.display());
     }
     if let Some(path) = &args.overlay {
-        let prepared = Prepared::new(&model, &images, &config)?;
         let picture = crate::overlay::draw(
             &images,
             &prepared.scorer,

@@ -59,7 +59,7 @@ pub fn run(
 ) -> Outcome {
     let mut rng = StdRng::seed_from_u64(seed);
     let n = ga.population;
-    let keep = ((n as f64 * ga.survivors).round() as usize).clamp(1, n - 1);
+    let keep = ga.survivor_count();
     let mut pop: Vec<Chromosome> = (0..n)
         .map(|_| std::array::from_fn(|_| rng.random_range(0..=MAX)))
         .collect();

@@ -78,11 +78,18 @@ struct Population {
 }
 
 impl Population {
-    fn random(problem: &Problem, n: usize, rng: &mut impl Rng) -> Self {
-        Self {
-            genes: (0..n).map(|_| view_sample(problem, rng)).collect(),
-            fit: vec![Fitness::default(); n],
-        }
+    /// The best `n` of `n · oversample` view-prior candidates on `level`.
+    fn seeded(problem: &Problem, level: usize, n: usize, oversample: usize, rng: &mut impl Rng) -> Self {
+        let mut all = Self {
+            genes: (0..n * oversample.max(1)).map(|_| view_sample(problem, rng)).collect(),
+            fit: vec![Fitness::default(); n * oversample.max(1)],
+        };
+        problem.evaluate_batch(level, &all.genes, &mut all.fit);
+        let mut order = Vec::new();
+        all.sort(&mut order);
+        all.genes.truncate(n);
+        all.fit.truncate(n);
+        all
     }
 
     fn sort(&mut self, order: &mut Vec<usize>) {
@@ -143,17 +150,17 @@ pub fn run(
 ) -> Outcome {
     let mut rng = StdRng::seed_from_u64(seed);
     let n = ga.population;
-    let keep = ((n as f64 * ga.survivors).round() as usize).clamp(1, n - 1);
+    let keep = ga.survivor_count();
     let levels = problem.pyramid.levels.len().min(robust.pyramid_levels);
     let plan = schedule(generations, &robust.level_share[robust.level_share.len() - levels..]);
     let coarsest = levels - 1;
     let mut pops: Vec<Population> = (0..robust.restarts)
-        .map(|_| Population::random(problem, n, &mut rng))
+        .map(|_| Population::seeded(problem, coarsest, n, robust.prior_samples, &mut rng))
         .collect();
     let mut order = Vec::with_capacity(n * robust.restarts);
     let mut batch: Vec<Genes> = Vec::with_capacity(n * robust.restarts);
     let mut batch_fit: Vec<Fitness> = Vec::with_capacity(n * robust.restarts);
-    let mut evaluations = 0;
+    let mut evaluations = robust.restarts * n * robust.prior_samples.max(1);
     let marks = snapshot_generations(generations);
     let mut snapshots = Vec::new();
     let mut generation = 0;
