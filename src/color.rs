@@ -55,6 +55,12 @@ pub fn is_chromatic(code: u8) -> bool {
 }
 
 /// Distance between two OpenCV hues on the 180-step colour circle.
+///
+/// ```
+/// use photopose::color::{hue_distance, rgb_to_hsv};
+/// let (red, _, _) = rgb_to_hsv(255, 0, 10); // hue 179, just below the wrap
+/// assert_eq!(hue_distance(red, 2), 3);
+/// ```
 #[inline]
 pub fn hue_distance(a: u8, b: u8) -> u8 {
     let d = a.abs_diff(b);

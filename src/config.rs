@@ -194,7 +194,7 @@ impl Default for RobustSettings {
             restarts: 4,
             prior_samples: 20,
             immigrants: 0.1,
-            refine_evaluations: 600,
+            refine_evaluations: 3000,
             min_facing_cos: 0.3,
             sat_tolerance: 50,
             min_extent_px: 24.0,

@@ -88,8 +88,9 @@ pub struct Scorer {
     /// Model frame size `L_P`, `B_P` in photo pixels.
     pub box_px: [f64; 2],
     pub left_from_hand: Isometry3<f64>,
-    /// `H̄_in` and the central rectangle's colour code.
-    pub mean_hue: f64,
+    /// `H̄_in` rounded to the nearest OpenCV hue (image hues are integers), and the
+    /// central rectangle's colour code.
+    pub mean_hue: u8,
     pub center_code: u8,
     /// Mean saturation of the central rectangle's chromatic points.
     pub center_sat: u8,
@@ -119,7 +120,7 @@ impl Scorer {
             min_extent_px: 0.0,
             box_px: [model.l_p, model.b_p],
             left_from_hand,
-            mean_hue: model.mean_hue,
+            mean_hue: (model.mean_hue.round() as u32 % 180) as u8,
             center_code: model.center_code(),
             center_sat: model.mean_saturation.clamp(0.0, 255.0).round() as u8,
         }
@@ -151,6 +152,18 @@ impl Scorer {
         let right = out.pop()?;
         let left = out.pop()?;
         Some([left, right])
+    }
+
+    /// `F_L` alone (eq. 12): the left image's score, for scans that fix depth later.
+    pub fn evaluate_left(&self, points: &PointSet, level: &FrameLevel, c: &PoseSize) -> f64 {
+        let Some([pl, _]) = self.placements(level, c) else {
+            return 0.0;
+        };
+        let m = self.params.e1 * points.inner_x.len() as f64 + self.params.e3 * points.outer_x.len() as f64;
+        if m <= 0.0 {
+            return 0.0;
+        }
+        self.image_sum(points, &level.left, &level.rig.left, &pl) / m
     }
 
     /// Eq. 18 for one candidate on one pyramid level.
@@ -213,14 +226,15 @@ impl Scorer {
     /// True when an outer point's pixel looks like the target (eq. 16's `e4` case).
     #[inline]
     fn outer_is_target(&self, plane: &ColorPlane, idx: usize) -> bool {
-        let threshold = self.params.outer_hue_threshold as f64;
+        let threshold = self.params.outer_hue_threshold;
+        let mean_hue = self.mean_hue;
         match self.rule {
-            OuterRule::RawHue => circular_hue_gap(plane.hue[idx] as f64, self.mean_hue) < threshold,
+            OuterRule::RawHue => hue_distance(plane.hue[idx], mean_hue) < threshold,
             OuterRule::ColorClass => {
                 let code = plane.code[idx];
                 if is_chromatic(self.center_code) {
                     is_chromatic(code)
-                        && circular_hue_gap(code as f64, self.mean_hue) < threshold
+                        && hue_distance(code, mean_hue) < threshold
                         && plane.sat[idx].abs_diff(self.center_sat) <= self.sat_tolerance
                 } else {
                     code == self.center_code
@@ -302,13 +316,6 @@ fn mean_hsv<'a>(points: impl Iterator<Item = &'a crate::model::InnerPoint>) -> (
         (s / n).round() as u8,
         (v / n).round() as u8,
     )
-}
-
-/// Distance of two hues on the 180-step circle (real-valued).
-#[inline]
-fn circular_hue_gap(a: f64, b: f64) -> f64 {
-    let d = (a - b).abs() % 180.0;
-    d.min(180.0 - d)
 }
 
 /// The pixel index a model point (photo pixels from the box centre) lands on, or `None`

@@ -6,6 +6,7 @@
 
 pub mod paper;
 pub mod robust;
+pub mod scan;
 
 use nalgebra::Vector3;
 
@@ -147,18 +148,24 @@ impl<'a> Problem<'a> {
 
     /// Fitness of many candidates on level `l`, split across the worker threads.
     pub fn evaluate_batch(&self, l: usize, genes: &[Genes], out: &mut [Fitness]) {
-        let chunk = genes.len().div_ceil(self.threads.max(1)).max(8);
-        if self.threads <= 1 || genes.len() <= chunk {
-            for (g, f) in genes.iter().zip(out.iter_mut()) {
-                *f = self.evaluate(l, g);
+        self.par_fill(genes, out, |g| self.evaluate(l, g));
+    }
+
+    /// `out[i] = f(&items[i])`, split into one contiguous chunk per worker thread.
+    pub fn par_fill<T: Sync, R: Send>(&self, items: &[T], out: &mut [R], f: impl Fn(&T) -> R + Sync) {
+        let chunk = items.len().div_ceil(self.threads.max(1)).max(8);
+        if self.threads <= 1 || items.len() <= chunk {
+            for (x, o) in items.iter().zip(out.iter_mut()) {
+                *o = f(x);
             }
             return;
         }
         std::thread::scope(|s| {
-            for (gs, fs) in genes.chunks(chunk).zip(out.chunks_mut(chunk)) {
+            for (xs, os) in items.chunks(chunk).zip(out.chunks_mut(chunk)) {
+                let f = &f;
                 s.spawn(move || {
-                    for (g, f) in gs.iter().zip(fs.iter_mut()) {
-                        *f = self.evaluate(l, g);
+                    for (x, o) in xs.iter().zip(os.iter_mut()) {
+                        *o = f(x);
                     }
                 });
             }

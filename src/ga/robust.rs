@@ -154,6 +154,7 @@ pub fn run(
     let levels = problem.pyramid.levels.len().min(robust.pyramid_levels);
     let plan = schedule(generations, &robust.level_share[robust.level_share.len() - levels..]);
     let coarsest = levels - 1;
+    let start = std::time::Instant::now();
     let mut pops: Vec<Population> = (0..robust.restarts)
         .map(|_| Population::seeded(problem, coarsest, n, robust.prior_samples, &mut rng))
         .collect();
@@ -161,6 +162,16 @@ pub fn run(
     let mut batch: Vec<Genes> = Vec::with_capacity(n * robust.restarts);
     let mut batch_fit: Vec<Fitness> = Vec::with_capacity(n * robust.restarts);
     let mut evaluations = robust.restarts * n * robust.prior_samples.max(1);
+    tracing::debug!("view-prior seeding: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
+    // The first population starts from the exhaustive scan instead.
+    if levels > 1 {
+        let start = std::time::Instant::now();
+        let seeds = super::scan::seeds(problem, n);
+        tracing::debug!("acquisition scan: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
+        for (slot, g) in pops[0].genes.iter_mut().zip(seeds) {
+            *slot = g;
+        }
+    }
     let marks = snapshot_generations(generations);
     let mut snapshots = Vec::new();
     let mut generation = 0;

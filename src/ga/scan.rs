@@ -1,0 +1,117 @@
+//! Acquisition by exhaustive scan on the coarsest pyramid level: the model, facing the
+//! left camera, is slid over the left image at every few pixels, apparent sizes and
+//! in-plane rotations (`F_L` only); the best distinct placements then get their depth
+//! from a scan along the line of sight scored on both images. The results seed the GA.
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+use super::{Genes, Problem};
+use crate::pose::PoseSize;
+
+/// Pixel step of the position scan on the coarsest level.
+const STEP_PX: f64 = 3.0;
+/// Apparent sizes (model length in full-resolution pixels), log-spaced.
+const SIZES: usize = 8;
+const LARGEST_FRACTION: f64 = 0.6;
+/// In-plane rotations, evenly spaced over the full turn.
+const ROLLS: usize = 8;
+/// Distinct placements kept for the depth scan, and depths tried for each.
+const KEEP: usize = 48;
+const DEPTHS: usize = 40;
+
+/// A placement of the model facing the left camera.
+#[derive(Debug, Clone, Copy)]
+struct Placement {
+    u: f64,
+    v: f64,
+    /// Model length over depth (`L / z`), i.e. apparent size over the focal length.
+    l_over_z: f64,
+    roll: f64,
+}
+
+impl Placement {
+    fn candidate(&self, problem: &Problem, level: usize, z: f64) -> PoseSize {
+        let rig = &problem.pyramid.levels[level].rig;
+        let p = rig.left.ray(self.u, self.v) * z;
+        let left_from_model = Isometry3::from_parts(
+            Translation3::from(p),
+            UnitQuaternion::from_scaled_axis(Vector3::z() * self.roll),
+        );
+        let hand_from_model = problem.scorer.left_from_hand.inverse() * left_from_model;
+        let [l_p, b_p] = problem.scorer.box_px;
+        let length = self.l_over_z * z;
+        PoseSize::from_pose(&hand_from_model, [length, length * b_p / l_p], l_p, b_p)
+    }
+}
+
+/// Up to `n` seeds, best first, from the scan of the coarsest level.
+pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
+    let level = problem.pyramid.levels.len() - 1;
+    let lv = &problem.pyramid.levels[level];
+    let points = &problem.points[level];
+    let (w, h) = (lv.rig.width as f64, lv.rig.height as f64);
+    let fx_full = lv.rig.left.fx / lv.scale;
+    let b = &problem.bounds;
+    let z_ref = (b.lo[2] * b.hi[2]).sqrt();
+    // Apparent model lengths from the smallest allowed extent to a large share of the image.
+    let smallest = problem.scorer.min_extent_px.max(16.0) / fx_full;
+    let largest = LARGEST_FRACTION * (lv.rig.height as f64 / lv.scale) / fx_full;
+    let mut placements = Vec::new();
+    for si in 0..SIZES {
+        let l_over_z = smallest * (largest / smallest).powf(si as f64 / (SIZES - 1) as f64);
+        for ri in 0..ROLLS {
+            let roll = std::f64::consts::TAU * ri as f64 / ROLLS as f64;
+            let mut v = STEP_PX / 2.0;
+            while v < h {
+                let mut u = STEP_PX / 2.0;
+                while u < w {
+                    placements.push(Placement { u, v, l_over_z, roll });
+                    u += STEP_PX;
+                }
+                v += STEP_PX;
+            }
+        }
+    }
+    let mut scores = vec![0.0; placements.len()];
+    problem.par_fill(&placements, &mut scores, |pl| {
+        problem
+            .scorer
+            .evaluate_left(points, lv, &pl.candidate(problem, level, z_ref))
+    });
+    let mut order: Vec<usize> = (0..placements.len()).collect();
+    order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]));
+    // Keep distinct placements: not within a few pixels of a better one of similar size.
+    let mut kept: Vec<Placement> = Vec::with_capacity(KEEP);
+    for &i in &order {
+        let p = placements[i];
+        let near = kept.iter().any(|k| {
+            let size_ratio = (p.l_over_z / k.l_over_z).ln().abs();
+            (p.u - k.u).hypot(p.v - k.v) < 3.0 * STEP_PX && size_ratio < 0.5
+        });
+        if !near {
+            kept.push(p);
+            if kept.len() == KEEP {
+                break;
+            }
+        }
+    }
+    // Depth along each kept line of sight, scored on both images.
+    let depths: Vec<f64> = (0..DEPTHS)
+        .map(|i| b.lo[2] * (b.hi[2] / b.lo[2]).powf(i as f64 / (DEPTHS - 1) as f64))
+        .collect();
+    let trials: Vec<(Placement, f64)> = kept.iter().flat_map(|p| depths.iter().map(move |&z| (*p, z))).collect();
+    let mut fits = vec![0.0; trials.len()];
+    problem.par_fill(&trials, &mut fits, |(pl, z)| {
+        problem.scorer.evaluate(points, lv, &pl.candidate(problem, level, *z)).f
+    });
+    let mut order: Vec<usize> = (0..trials.len()).collect();
+    order.sort_by(|&a, &b| fits[b].total_cmp(&fits[a]));
+    order
+        .into_iter()
+        .take(n)
+        .map(|i| {
+            let (pl, z) = trials[i];
+            b.encode(&pl.candidate(problem, level, z))
+        })
+        .collect()
+}
