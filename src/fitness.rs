@@ -213,11 +213,11 @@ impl Scorer {
     /// chromatic pixel of close hue.
     #[inline]
     fn inner_close(&self, model: u8, model_sat: u8, plane: &ColorPlane, idx: usize) -> bool {
-        let image = plane.code[idx];
+        let image = plane.px[idx].code;
         if is_chromatic(model) {
             is_chromatic(image)
                 && hue_distance(model, image) <= self.params.inner_hue_tolerance
-                && model_sat.abs_diff(plane.sat[idx]) <= self.sat_tolerance
+                && model_sat.abs_diff(plane.px[idx].sat) <= self.sat_tolerance
         } else {
             model == image
         }
@@ -229,13 +229,13 @@ impl Scorer {
         let threshold = self.params.outer_hue_threshold;
         let mean_hue = self.mean_hue;
         match self.rule {
-            OuterRule::RawHue => hue_distance(plane.hue[idx], mean_hue) < threshold,
+            OuterRule::RawHue => hue_distance(plane.px[idx].hue, mean_hue) < threshold,
             OuterRule::ColorClass => {
-                let code = plane.code[idx];
+                let code = plane.px[idx].code;
                 if is_chromatic(self.center_code) {
                     is_chromatic(code)
                         && hue_distance(code, mean_hue) < threshold
-                        && plane.sat[idx].abs_diff(self.center_sat) <= self.sat_tolerance
+                        && plane.px[idx].sat.abs_diff(self.center_sat) <= self.sat_tolerance
                 } else {
                     code == self.center_code
                 }
@@ -341,6 +341,7 @@ mod tests {
     use super::*;
     use crate::camera::StereoRig;
     use crate::color::GRAY;
+    use crate::frame::PixelColor;
     use crate::model::{InnerPoint, PixelBox};
 
     /// A 20×20-pixel world: pinhole f = 100, identical left and right cameras
@@ -350,15 +351,16 @@ mod tests {
         let mut plane = ColorPlane {
             width: 20,
             height: 20,
-            code: vec![0; 400],
-            hue: vec![0; 400],
-            sat: vec![255; 400],
+            px: vec![PixelColor::default(); 400],
         };
         for y in 0..20 {
             for x in 0..20 {
                 let c = code(x, y);
-                plane.code[y * 20 + x] = c;
-                plane.hue[y * 20 + x] = if is_chromatic(c) { c } else { 0 };
+                plane.px[y * 20 + x] = PixelColor {
+                    code: c,
+                    sat: 255,
+                    hue: if is_chromatic(c) { c } else { 0 },
+                };
             }
         }
         FrameLevel {
@@ -489,7 +491,7 @@ mod tests {
                 GRAY
             }
         });
-        lv.right.code.iter_mut().for_each(|c| *c = 120);
+        lv.right.px.iter_mut().for_each(|c| c.code = 120);
         let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
         let f = scorer(OuterRule::ColorClass).evaluate(&pts, &lv, &candidate());
         // F_L = 1, F_R = 0 → g = 0, F = 0.5.

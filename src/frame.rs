@@ -111,36 +111,42 @@ impl StereoImages {
     }
 }
 
-/// Colour data of one image: per pixel the Table 1 colour code and the raw OpenCV hue.
+/// The colour data of one pixel, interleaved so one memory access serves a sample point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PixelColor {
+    /// [`crate::color`] code: the hue of a chromatic pixel, or the achromatic class.
+    pub code: u8,
+    /// Saturation.
+    pub sat: u8,
+    /// Raw OpenCV hue (0 for pure grey, as OpenCV gives).
+    pub hue: u8,
+}
+
+/// Colour data of one image, row-major.
 #[derive(Debug, Clone)]
 pub struct ColorPlane {
     pub width: usize,
     pub height: usize,
-    /// [`crate::color`] code per pixel, row-major.
-    pub code: Vec<u8>,
-    /// Raw OpenCV hue per pixel (0 for pure grey, as OpenCV gives), row-major.
-    pub hue: Vec<u8>,
-    /// Saturation per pixel, row-major.
-    pub sat: Vec<u8>,
+    pub px: Vec<PixelColor>,
 }
 
 impl ColorPlane {
     pub fn from_rgb(img: &RgbImage, classes: &ColorClasses) -> Self {
-        let (w, h) = img.dimensions();
-        let n = (w * h) as usize;
-        let (mut code, mut hue, mut sat) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
-        for p in img.pixels() {
-            let (hh, s, v) = rgb_to_hsv(p[0], p[1], p[2]);
-            code.push(classes.code(hh, s, v));
-            hue.push(hh);
-            sat.push(s);
-        }
+        let px = img
+            .pixels()
+            .map(|p| {
+                let (hue, sat, v) = rgb_to_hsv(p[0], p[1], p[2]);
+                PixelColor {
+                    code: classes.code(hue, sat, v),
+                    sat,
+                    hue,
+                }
+            })
+            .collect();
         Self {
-            width: w as usize,
-            height: h as usize,
-            code,
-            hue,
-            sat,
+            width: img.width() as usize,
+            height: img.height() as usize,
+            px,
         }
     }
 }
@@ -274,7 +280,9 @@ mod tests {
             |x, _| if x == 0 { Rgb([0, 0, 255]) } else { Rgb([250, 250, 250]) },
         );
         let p = ColorPlane::from_rgb(&img, &ColorClasses::default());
-        assert_eq!(p.code, vec![120, crate::color::WHITE]);
-        assert_eq!(p.hue, vec![120, 0]);
+        let codes: Vec<u8> = p.px.iter().map(|c| c.code).collect();
+        let hues: Vec<u8> = p.px.iter().map(|c| c.hue).collect();
+        assert_eq!(codes, vec![120, crate::color::WHITE]);
+        assert_eq!(hues, vec![120, 0]);
     }
 }

@@ -24,15 +24,16 @@ const DEPTHS: usize = 40;
 struct Placement {
     u: f64,
     v: f64,
+    /// Line of sight through `(u, v)` (z = 1), computed once per pixel.
+    ray: Vector3<f64>,
     /// Model length over depth (`L / z`), i.e. apparent size over the focal length.
     l_over_z: f64,
     roll: f64,
 }
 
 impl Placement {
-    fn candidate(&self, problem: &Problem, level: usize, z: f64) -> PoseSize {
-        let rig = &problem.pyramid.levels[level].rig;
-        let p = rig.left.ray(self.u, self.v) * z;
+    fn candidate(&self, problem: &Problem, z: f64) -> PoseSize {
+        let p = self.ray * z;
         let left_from_model = Isometry3::from_parts(
             Translation3::from(p),
             UnitQuaternion::from_scaled_axis(Vector3::z() * self.roll),
@@ -57,26 +58,32 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
     let smallest = problem.scorer.min_extent_px.max(16.0) / fx_full;
     let largest = LARGEST_FRACTION * (lv.rig.height as f64 / lv.scale) / fx_full;
     let mut placements = Vec::new();
+    let mut pixels = Vec::new();
+    let mut v = STEP_PX / 2.0;
+    while v < h {
+        let mut u = STEP_PX / 2.0;
+        while u < w {
+            pixels.push((u, v, lv.rig.left.ray(u, v)));
+            u += STEP_PX;
+        }
+        v += STEP_PX;
+    }
     for si in 0..SIZES {
         let l_over_z = smallest * (largest / smallest).powf(si as f64 / (SIZES - 1) as f64);
         for ri in 0..ROLLS {
             let roll = std::f64::consts::TAU * ri as f64 / ROLLS as f64;
-            let mut v = STEP_PX / 2.0;
-            while v < h {
-                let mut u = STEP_PX / 2.0;
-                while u < w {
-                    placements.push(Placement { u, v, l_over_z, roll });
-                    u += STEP_PX;
-                }
-                v += STEP_PX;
-            }
+            placements.extend(pixels.iter().map(|&(u, v, ray)| Placement {
+                u,
+                v,
+                ray,
+                l_over_z,
+                roll,
+            }));
         }
     }
     let mut scores = vec![0.0; placements.len()];
     problem.par_fill(&placements, &mut scores, |pl| {
-        problem
-            .scorer
-            .evaluate_left(points, lv, &pl.candidate(problem, level, z_ref))
+        problem.scorer.evaluate_left(points, lv, &pl.candidate(problem, z_ref))
     });
     let mut order: Vec<usize> = (0..placements.len()).collect();
     order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]));
@@ -102,7 +109,7 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
     let trials: Vec<(Placement, f64)> = kept.iter().flat_map(|p| depths.iter().map(move |&z| (*p, z))).collect();
     let mut fits = vec![0.0; trials.len()];
     problem.par_fill(&trials, &mut fits, |(pl, z)| {
-        problem.scorer.evaluate(points, lv, &pl.candidate(problem, level, *z)).f
+        problem.scorer.evaluate(points, lv, &pl.candidate(problem, *z)).f
     });
     let mut order: Vec<usize> = (0..trials.len()).collect();
     order.sort_by(|&a, &b| fits[b].total_cmp(&fits[a]));
@@ -111,7 +118,7 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
         .take(n)
         .map(|i| {
             let (pl, z) = trials[i];
-            b.encode(&pl.candidate(problem, level, z))
+            b.encode(&pl.candidate(problem, z))
         })
         .collect()
 }
