@@ -45,10 +45,9 @@ impl PoseSize {
 
     /// The candidate that places a `size_mm` model at `hand_from_model`.
     pub fn from_pose(hand_from_model: &Isometry3<f64>, size_mm: [f64; 2], l_p: f64, b_p: f64) -> Self {
-        let [w, x, y, z] = wxyz(&hand_from_model.rotation);
+        let [_, x, y, z] = wxyz(&hand_from_model.rotation);
         let alpha = l_p / size_mm[0];
         let beta = b_p / size_mm[1];
-        let _ = w;
         Self {
             position: hand_from_model.translation.vector,
             eps: Vector3::new(x, y, z),
