@@ -220,7 +220,7 @@ impl Default for ModelSettings {
     fn default() -> Self {
         Self {
             step_px: 0.0,
-            target_points: 900,
+            target_points: 1800,
             outer_width_px: 0.0,
             center_fraction: 0.5,
         }

@@ -53,8 +53,8 @@ fn run(r: &Rendered, mode: Mode) -> Errors {
 }
 
 /// The accuracy targets on every rendered scene (median ≤ 10 mm, 5 %, 5° clean;
-/// ≤ 20 mm, 10 %, 10° noisy/occluded), with a table of both modes. Not yet met (clean
-/// rotation 5.7°, hard size 12 %, see README); run it with
+/// ≤ 20 mm, 10 %, 10° noisy/occluded), with a table of both modes. Clean scenes meet
+/// them; the occluded size median (13 %) does not yet (see README). Run it with
 /// `cargo test --release -- --ignored --nocapture rendered_scenes`.
 #[test]
 #[ignore]
