@@ -109,7 +109,7 @@ pub struct Problem<'a> {
 }
 
 impl<'a> Problem<'a> {
-    /// `stride_per_level` thins the model grid by `2^level` on coarse levels when true.
+    /// With `thin`, coarse level `l` uses the model as a thumbnail: one point per `2^l` × `2^l` block.
     pub fn new(
         scorer: &'a Scorer,
         pyramid: &'a FramePyramid,
