@@ -86,8 +86,9 @@ pub fn rgb_to_hsv(r: u8, g: u8, b: u8) -> (u8, u8, u8) {
         240.0 + 60.0 * (rf - gf) / delta
     };
     let h = if h < 0.0 { h + 360.0 } else { h };
-    let h = ((h / 2.0).round() as u32 % 180) as u8;
-    (h, s.round() as u8, v as u8)
+    // `x + 0.5` truncated is `round` for non-negative x, without a libm call.
+    let h = ((h / 2.0 + 0.5) as u32 % 180) as u8;
+    (h, (s + 0.5) as u8, v as u8)
 }
 
 /// Circular mean of OpenCV hues; `None` for an empty set or hues that cancel out.

@@ -184,6 +184,10 @@ pub struct RobustSettings {
     pub sat_tolerance: u8,
     /// Smallest image extent of a model side, full-resolution pixels (degenerate-pose guard).
     pub min_extent_px: f64,
+    /// Weight of stereo confirmation in the search's ranking: the share of inner points
+    /// that match the model in the left image and whose right pixel shows the same
+    /// colour. 0 ranks by `F` alone.
+    pub stereo_weight: f64,
 }
 
 impl Default for RobustSettings {
@@ -198,6 +202,7 @@ impl Default for RobustSettings {
             min_facing_cos: 0.3,
             sat_tolerance: 50,
             min_extent_px: 24.0,
+            stereo_weight: 0.5,
         }
     }
 }
@@ -404,6 +409,13 @@ impl Config {
                 "robust",
                 "min_facing_cos",
                 format!("{} must lie in [0, 1)", robust.min_facing_cos),
+            ));
+        }
+        if !(robust.stereo_weight >= 0.0 && robust.stereo_weight.is_finite()) {
+            return Err(invalid(
+                "robust",
+                "stereo_weight",
+                format!("{} must be a non-negative number", robust.stereo_weight),
             ));
         }
         let model = raw.model;

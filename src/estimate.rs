@@ -8,13 +8,15 @@ use crate::config::{Config, Mode};
 use crate::fitness::{OuterRule, Scorer};
 use crate::frame::{FramePyramid, StereoImages};
 use crate::ga::{self, Bounds, Outcome, Problem};
+use crate::lookup::LevelLookup;
 use crate::model::PhotoModel;
 use crate::pose::PoseSize;
 
 /// The per-frame inputs of the search, prepared once.
 pub struct Prepared {
     pub scorer: Scorer,
-    pub pyramid: FramePyramid,
+    /// The frame's lookup images at every pyramid level, level 0 at full resolution.
+    pub levels: Vec<LevelLookup>,
     pub bounds: Bounds,
     pub mode: Mode,
 }
@@ -39,12 +41,16 @@ impl Prepared {
         let mut scorer = Scorer::new(model, config.fitness, rule, min_cos, sat_tol, config.left_from_hand);
         if mode == Mode::Robust {
             scorer.min_extent_px = r.min_extent_px;
+            scorer.stereo_weight = r.stereo_weight;
         }
+        let start = std::time::Instant::now();
         let pyramid = FramePyramid::build(images, &rig, levels, &config.fitness.classes());
+        let levels = pyramid.levels.iter().map(|l| scorer.lookup(l)).collect();
+        tracing::debug!("frame preparation: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
         let bounds = Bounds::new(&config.search, model, mode == Mode::Robust);
         Ok(Self {
             scorer,
-            pyramid,
+            levels,
             bounds,
             mode,
         })
@@ -54,7 +60,7 @@ impl Prepared {
     pub fn problem<'a>(&'a self, model: &PhotoModel, config: &Config) -> Problem<'a> {
         Problem::new(
             &self.scorer,
-            &self.pyramid,
+            &self.levels,
             model,
             self.bounds,
             config.ga.threads,

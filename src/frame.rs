@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use image::{imageops, RgbImage};
+use rayon::prelude::*;
 
 use crate::camera::StereoRig;
 use crate::color::{rgb_to_hsv, ColorClasses};
@@ -122,7 +123,7 @@ pub struct PixelColor {
     pub hue: u8,
 }
 
-/// Colour data of one image, row-major.
+/// Colour data of one image, row-major (computed on all cores).
 #[derive(Debug, Clone)]
 pub struct ColorPlane {
     pub width: usize,
@@ -133,7 +134,8 @@ pub struct ColorPlane {
 impl ColorPlane {
     pub fn from_rgb(img: &RgbImage, classes: &ColorClasses) -> Self {
         let px = img
-            .pixels()
+            .as_raw()
+            .par_chunks_exact(3)
             .map(|p| {
                 let (hue, sat, v) = rgb_to_hsv(p[0], p[1], p[2]);
                 PixelColor {
@@ -202,38 +204,48 @@ impl FramePyramid {
     }
 }
 
-/// 3×3 box blur (edges clamped).
+/// 3×3 box blur (edges clamped): a horizontal then a vertical 3-tap sum.
 fn blur3(img: &RgbImage) -> RgbImage {
-    let (w, h) = (img.width() as i64, img.height() as i64);
-    RgbImage::from_fn(img.width(), img.height(), |x, y| {
-        let mut acc = [0u32; 3];
-        for dy in -1..=1 {
-            for dx in -1..=1 {
-                let px = (x as i64 + dx).clamp(0, w - 1) as u32;
-                let py = (y as i64 + dy).clamp(0, h - 1) as u32;
-                let p = img.get_pixel(px, py);
-                for c in 0..3 {
-                    acc[c] += p[c] as u32;
-                }
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let src = img.as_raw();
+    let mut rows = vec![0u16; w * h * 3];
+    for y in 0..h {
+        for x in 0..w {
+            let (l, r) = (x.saturating_sub(1), (x + 1).min(w - 1));
+            for c in 0..3 {
+                let at = |xx: usize| src[(y * w + xx) * 3 + c] as u16;
+                rows[(y * w + x) * 3 + c] = at(l) + at(x) + at(r);
             }
         }
-        image::Rgb([(acc[0] / 9) as u8, (acc[1] / 9) as u8, (acc[2] / 9) as u8])
-    })
+    }
+    let mut out = vec![0u8; w * h * 3];
+    for y in 0..h {
+        let (u, d) = (y.saturating_sub(1), (y + 1).min(h - 1));
+        for i in 0..w * 3 {
+            let sum = rows[u * w * 3 + i] + rows[y * w * 3 + i] + rows[d * w * 3 + i];
+            out[y * w * 3 + i] = (sum / 9) as u8;
+        }
+    }
+    RgbImage::from_raw(w as u32, h as u32, out).expect("buffer of the image's size")
 }
 
-/// Halves an image by averaging 2×2 blocks.
+/// Halves an image by averaging 2×2 blocks (an odd last row or column is dropped).
 fn half(img: &RgbImage) -> RgbImage {
-    let (w, h) = (img.width() / 2, img.height() / 2);
-    RgbImage::from_fn(w.max(1), h.max(1), |x, y| {
-        let mut acc = [0u32; 3];
-        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-            let p = img.get_pixel((2 * x + dx).min(img.width() - 1), (2 * y + dy).min(img.height() - 1));
+    let (sw, sh) = (img.width() as usize, img.height() as usize);
+    let (w, h) = ((sw / 2).max(1), (sh / 2).max(1));
+    let src = img.as_raw();
+    let mut out = vec![0u8; w * h * 3];
+    for y in 0..h {
+        let (y0, y1) = ((2 * y).min(sh - 1), (2 * y + 1).min(sh - 1));
+        for x in 0..w {
+            let (x0, x1) = ((2 * x).min(sw - 1), (2 * x + 1).min(sw - 1));
             for c in 0..3 {
-                acc[c] += p[c] as u32;
+                let at = |xx: usize, yy: usize| src[(yy * sw + xx) * 3 + c] as u32;
+                out[(y * w + x) * 3 + c] = ((at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1)) / 4) as u8;
             }
         }
-        image::Rgb([(acc[0] / 4) as u8, (acc[1] / 4) as u8, (acc[2] / 4) as u8])
-    })
+    }
+    RgbImage::from_raw(w as u32, h as u32, out).expect("buffer of the image's size")
 }
 
 #[cfg(test)]

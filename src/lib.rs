@@ -3,7 +3,8 @@
 //! photo-model method (Tian & Wang, Sensors 2023).
 //!
 //! Data flows: [`calibration`] + [`config`] → [`camera`] rig; [`model`] samples the photo;
-//! [`frame`] prepares each stereo frame's colour data; [`fitness`] scores a candidate
+//! [`frame`] prepares each stereo frame's colour data and [`lookup`] packs it for the
+//! fitness; [`fitness`] scores a candidate
 //! [`pose`]; [`ga`] searches; [`estimate`] runs it end to end; [`render`] is the
 //! synthetic camera; [`overlay`] draws the result.
 
@@ -16,7 +17,9 @@ pub mod estimate;
 pub mod fitness;
 pub mod frame;
 pub mod ga;
+pub mod lookup;
 pub mod model;
 pub mod overlay;
 pub mod pose;
 pub mod render;
+pub mod workers;

@@ -3,8 +3,9 @@
 
 use image::{Rgb, RgbImage};
 
+use crate::camera::StereoRig;
 use crate::fitness::{PointSet, ProjectedPoints, Scorer};
-use crate::frame::{FrameLevel, StereoImages};
+use crate::frame::StereoImages;
 use crate::model::PhotoModel;
 use crate::pose::PoseSize;
 
@@ -13,18 +14,12 @@ const OUTER: Rgb<u8> = Rgb([255, 40, 255]);
 const OUTLINE: Rgb<u8> = Rgb([255, 255, 0]);
 
 /// The side-by-side frame with the candidate's projection drawn on both eyes.
-pub fn draw(
-    images: &StereoImages,
-    scorer: &Scorer,
-    level: &FrameLevel,
-    model: &PhotoModel,
-    cand: &PoseSize,
-) -> RgbImage {
+pub fn draw(images: &StereoImages, scorer: &Scorer, rig: &StereoRig, model: &PhotoModel, cand: &PoseSize) -> RgbImage {
     let mut out = images.to_sbs();
     let points = PointSet::from_model(model, &scorer.params, 1);
-    let projected = scorer.project_points(&points, level, cand);
+    let projected = scorer.project_points(&points, rig, cand);
     let outline = outline_points(model);
-    let corners = scorer.project_points(&outline, level, cand);
+    let corners = scorer.project_points(&outline, rig, cand);
     let eye_w = images.left.width() as f64;
     for (eye, (pts, line)) in projected.iter().zip(&corners).enumerate() {
         let dx = eye as f64 * eye_w;
@@ -58,8 +53,8 @@ fn outline_points(model: &PhotoModel) -> PointSet {
             (-hw, -hh + t * 2.0 * hh),
             (hw, -hh + t * 2.0 * hh),
         ] {
-            set.inner_x.push(x);
-            set.inner_y.push(y);
+            set.inner_x.push(x as f32);
+            set.inner_y.push(y as f32);
             set.inner_code.push(0);
             set.inner_sat.push(0);
         }

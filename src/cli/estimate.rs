@@ -76,7 +76,7 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         let picture = crate::overlay::draw(
             &images,
             &prepared.scorer,
-            &prepared.pyramid.levels[0],
+            &prepared.levels[0].rig,
             &model,
             &outcome.best,
         );

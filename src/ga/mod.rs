@@ -12,9 +12,10 @@ use nalgebra::Vector3;
 
 use crate::config::SearchSpace;
 use crate::fitness::{Fitness, PointSet, Scorer};
-use crate::frame::{FrameLevel, FramePyramid};
+use crate::lookup::LevelLookup;
 use crate::model::PhotoModel;
 use crate::pose::PoseSize;
+use crate::workers::Workers;
 
 /// Number of genes in a chromosome.
 pub const GENES: usize = 8;
@@ -97,53 +98,46 @@ impl Bounds {
     }
 }
 
-/// One frame's search problem: the scorer, the per-frame colour pyramid and the
-/// model's points at each level.
+/// One frame's search problem: the scorer, the frame's lookup images at every pyramid
+/// level and the model's points at each level.
 pub struct Problem<'a> {
     pub scorer: &'a Scorer,
-    pub pyramid: &'a FramePyramid,
+    /// Level 0 at full resolution.
+    pub levels: &'a [LevelLookup],
     /// Points used on each pyramid level (coarser levels use a sub-grid).
     pub points: Vec<PointSet>,
     pub bounds: Bounds,
-    pub threads: usize,
+    pub workers: Workers,
 }
 
 impl<'a> Problem<'a> {
     /// With `thin`, coarse level `l` uses the model as a thumbnail: one point per `2^l` × `2^l` block.
     pub fn new(
         scorer: &'a Scorer,
-        pyramid: &'a FramePyramid,
+        levels: &'a [LevelLookup],
         model: &PhotoModel,
         bounds: Bounds,
         threads: usize,
         thin: bool,
     ) -> Self {
-        let points = (0..pyramid.levels.len())
+        let points = (0..levels.len())
             .map(|l| PointSet::from_model(model, &scorer.params, if thin { 1 << l } else { 1 }))
             .collect();
-        let threads = if threads == 0 {
-            std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
-        } else {
-            threads
-        };
+        let workers = Workers::new(threads);
         Self {
             scorer,
-            pyramid,
+            levels,
             points,
             bounds,
-            threads,
+            workers,
         }
-    }
-
-    fn level(&self, l: usize) -> &FrameLevel {
-        &self.pyramid.levels[l.min(self.pyramid.levels.len() - 1)]
     }
 
     /// Fitness of one candidate on level `l`.
     pub fn evaluate(&self, l: usize, g: &Genes) -> Fitness {
-        let l = l.min(self.points.len() - 1);
+        let l = l.min(self.levels.len() - 1);
         self.scorer
-            .evaluate(&self.points[l], self.level(l), &self.bounds.decode(g))
+            .evaluate(&self.points[l], &self.levels[l], &self.bounds.decode(g))
     }
 
     /// Fitness of many candidates on level `l`, split across the worker threads.
@@ -151,25 +145,9 @@ impl<'a> Problem<'a> {
         self.par_fill(genes, out, |g| self.evaluate(l, g));
     }
 
-    /// `out[i] = f(&items[i])`, split into one contiguous chunk per worker thread.
+    /// `out[i] = f(&items[i])` on the worker threads.
     pub fn par_fill<T: Sync, R: Send>(&self, items: &[T], out: &mut [R], f: impl Fn(&T) -> R + Sync) {
-        let chunk = items.len().div_ceil(self.threads.max(1)).max(8);
-        if self.threads <= 1 || items.len() <= chunk {
-            for (x, o) in items.iter().zip(out.iter_mut()) {
-                *o = f(x);
-            }
-            return;
-        }
-        std::thread::scope(|s| {
-            for (xs, os) in items.chunks(chunk).zip(out.chunks_mut(chunk)) {
-                let f = &f;
-                s.spawn(move || {
-                    for (x, o) in xs.iter().zip(os.iter_mut()) {
-                        *o = f(x);
-                    }
-                });
-            }
-        });
+        self.workers.fill(items, out, f)
     }
 }
 
@@ -203,7 +181,7 @@ pub fn snapshot_generations(total: usize) -> Vec<usize> {
 pub(crate) fn rank(fitness: &[Fitness], order: &mut Vec<usize>) {
     order.clear();
     order.extend(0..fitness.len());
-    order.sort_by(|&a, &b| fitness[b].f.total_cmp(&fitness[a].f));
+    order.sort_by(|&a, &b| fitness[b].score.total_cmp(&fitness[a].score));
 }
 
 #[cfg(test)]

@@ -92,7 +92,9 @@ pub fn run(
         problem.evaluate_batch(0, &gen_buf, &mut fit[keep..]);
         evaluations += n - keep;
         if marks.contains(&generation) {
-            let best = (0..n).max_by(|&a, &b| fit[a].f.total_cmp(&fit[b].f)).unwrap_or(0);
+            let best = (0..n)
+                .max_by(|&a, &b| fit[a].score.total_cmp(&fit[b].score))
+                .unwrap_or(0);
             snapshots.push(Snapshot {
                 generation,
                 best: problem.bounds.decode(&genes(&pop[best])),
@@ -101,7 +103,9 @@ pub fn run(
         }
         progress(generation);
     }
-    let best = (0..n).max_by(|&a, &b| fit[a].f.total_cmp(&fit[b].f)).unwrap_or(0);
+    let best = (0..n)
+        .max_by(|&a, &b| fit[a].score.total_cmp(&fit[b].score))
+        .unwrap_or(0);
     Outcome {
         best: problem.bounds.decode(&genes(&pop[best])),
         fitness: fit[best],

@@ -50,7 +50,7 @@ const PRIOR_TILT_DEG: f64 = 45.0;
 /// depth of the search range, roughly facing the camera, random size and aspect. Most of
 /// the hand-frame search box is outside the field of view; this prior is not.
 pub fn view_sample(problem: &Problem, rng: &mut impl Rng) -> Genes {
-    let level = &problem.pyramid.levels[0];
+    let level = &problem.levels[0];
     let (w, h) = (level.rig.width as f64, level.rig.height as f64);
     let (u, v) = (rng.random_range(0.05..0.95) * w, rng.random_range(0.05..0.95) * h);
     let b = &problem.bounds;
@@ -63,12 +63,10 @@ pub fn view_sample(problem: &Problem, rng: &mut impl Rng) -> Genes {
         * UnitQuaternion::from_scaled_axis(Vector3::z() * roll);
     let left_from_model = Isometry3::from_parts(Translation3::from(p), rotation);
     let hand_from_model = problem.scorer.left_from_hand.inverse() * left_from_model;
-    let mut cand = PoseSize::from_pose(&hand_from_model, [1.0, 1.0], 1.0, 1.0);
-    let mut g = b.encode(&cand);
+    let mut g = b.encode(&PoseSize::from_pose(&hand_from_model, [1.0, 1.0], 1.0, 1.0));
     g[6] = rng.random();
     g[7] = rng.random();
-    cand = b.decode(&g);
-    b.encode(&cand)
+    g
 }
 
 /// One population: genes and their fitness, sorted best first after [`Population::sort`].
@@ -151,27 +149,40 @@ pub fn run(
     let mut rng = StdRng::seed_from_u64(seed);
     let n = ga.population;
     let keep = ga.survivor_count();
-    let levels = problem.pyramid.levels.len().min(robust.pyramid_levels);
+    let levels = problem.levels.len().min(robust.pyramid_levels);
     let plan = schedule(generations, &robust.level_share[robust.level_share.len() - levels..]);
     let coarsest = levels - 1;
+    // The first population starts from the exhaustive scan (topped up from the view
+    // prior if the scan found fewer placements), the others from the view prior.
     let start = std::time::Instant::now();
-    let mut pops: Vec<Population> = (0..robust.restarts)
-        .map(|_| Population::seeded(problem, coarsest, n, robust.prior_samples, &mut rng))
-        .collect();
+    let scanned = if levels > 1 {
+        super::scan::seeds(problem, n)
+    } else {
+        Vec::new()
+    };
+    tracing::debug!("acquisition scan: {:.0} ms", ms(start));
+    let start = std::time::Instant::now();
+    let mut evaluations = 0;
+    let mut pops = Vec::with_capacity(robust.restarts);
+    for r in 0..robust.restarts {
+        if r == 0 && !scanned.is_empty() {
+            let mut genes = scanned.clone();
+            while genes.len() < n {
+                genes.push(view_sample(problem, &mut rng));
+            }
+            pops.push(Population {
+                fit: vec![Fitness::default(); n],
+                genes,
+            });
+        } else {
+            pops.push(Population::seeded(problem, coarsest, n, robust.prior_samples, &mut rng));
+            evaluations += n * robust.prior_samples.max(1);
+        }
+    }
+    tracing::debug!("view-prior seeding: {:.0} ms", ms(start));
     let mut order = Vec::with_capacity(n * robust.restarts);
     let mut batch: Vec<Genes> = Vec::with_capacity(n * robust.restarts);
     let mut batch_fit: Vec<Fitness> = Vec::with_capacity(n * robust.restarts);
-    let mut evaluations = robust.restarts * n * robust.prior_samples.max(1);
-    tracing::debug!("view-prior seeding: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
-    // The first population starts from the exhaustive scan instead.
-    if levels > 1 {
-        let start = std::time::Instant::now();
-        let seeds = super::scan::seeds(problem, n);
-        tracing::debug!("acquisition scan: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
-        for (slot, g) in pops[0].genes.iter_mut().zip(seeds) {
-            *slot = g;
-        }
-    }
     let marks = snapshot_generations(generations);
     let mut snapshots = Vec::new();
     let mut generation = 0;
@@ -197,6 +208,7 @@ pub fn run(
 
     for (step, &gens) in plan.iter().enumerate() {
         let level = coarsest - step;
+        let level_start = std::time::Instant::now();
         evaluate(&mut pops, level, 0, &mut evaluations);
         let sigma0 = SIGMA_FULL * 3f64.powi(level as i32);
         let immigrants = if level == coarsest && levels > 1 {
@@ -234,10 +246,13 @@ pub fn run(
             all.fit.truncate(n);
             pops = vec![all];
         }
+        tracing::debug!("level {level}: {gens} generations in {:.0} ms", ms(level_start));
     }
     let (pi, ii) = best_of(&pops);
     let start = pops[pi].genes[ii];
+    let refine_start = std::time::Instant::now();
     let (best, fitness, used) = refine(problem, start, robust.refine_evaluations, &mut rng);
+    tracing::debug!("refinement: {used} evaluations in {:.0} ms", ms(refine_start));
     evaluations += used;
     if let Some(last) = snapshots.last_mut() {
         last.best = problem.bounds.decode(&best);
@@ -252,13 +267,18 @@ pub fn run(
     }
 }
 
+/// Milliseconds since `t`.
+fn ms(t: std::time::Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
 fn best_of(pops: &[Population]) -> (usize, usize) {
     let mut best = (0, 0);
     let mut f = f64::NEG_INFINITY;
     for (pi, p) in pops.iter().enumerate() {
         for (ii, fit) in p.fit.iter().enumerate() {
-            if fit.f > f {
-                f = fit.f;
+            if fit.score > f {
+                f = fit.score;
                 best = (pi, ii);
             }
         }
@@ -270,7 +290,7 @@ fn best_of(pops: &[Population]) -> (usize, usize) {
 fn refine(problem: &Problem, start: Genes, budget: usize, rng: &mut impl Rng) -> (Genes, Fitness, usize) {
     let mut best = start;
     let mut best_fit = problem.evaluate(0, &best);
-    let lambda = (4 * problem.threads).max(8);
+    let lambda = (4 * problem.workers.threads()).max(8);
     let mut sigma = SIGMA_FULL / 2.0;
     let mut used = 1;
     let mut kids = vec![[0.0; GENES]; lambda];
@@ -284,11 +304,11 @@ fn refine(problem: &Problem, start: Genes, budget: usize, rng: &mut impl Rng) ->
         }
         problem.evaluate_batch(0, &kids, &mut fit);
         used += lambda;
-        let (i, f) = fit
-            .iter()
-            .enumerate()
-            .fold((0, fit[0]), |acc, (i, f)| if f.f > acc.1.f { (i, *f) } else { acc });
-        if f.f > best_fit.f {
+        let (i, f) = fit.iter().enumerate().fold(
+            (0, fit[0]),
+            |acc, (i, f)| if f.score > acc.1.score { (i, *f) } else { acc },
+        );
+        if f.score > best_fit.score {
             best = kids[i];
             best_fit = f;
             sigma = (sigma * 1.3).min(SIGMA_FULL * 2.0);

@@ -47,8 +47,8 @@ impl Placement {
 
 /// Up to `n` seeds, best first, from the scan of the coarsest level.
 pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
-    let level = problem.pyramid.levels.len() - 1;
-    let lv = &problem.pyramid.levels[level];
+    let level = problem.levels.len() - 1;
+    let lv = &problem.levels[level];
     let points = &problem.points[level];
     let (w, h) = (lv.rig.width as f64, lv.rig.height as f64);
     let fx_full = lv.rig.left.fx / lv.scale;
@@ -109,7 +109,7 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
     let trials: Vec<(Placement, f64)> = kept.iter().flat_map(|p| depths.iter().map(move |&z| (*p, z))).collect();
     let mut fits = vec![0.0; trials.len()];
     problem.par_fill(&trials, &mut fits, |(pl, z)| {
-        problem.scorer.evaluate(points, lv, &pl.candidate(problem, *z)).f
+        problem.scorer.evaluate(points, lv, &pl.candidate(problem, *z)).score
     });
     let mut order: Vec<usize> = (0..trials.len()).collect();
     order.sort_by(|&a, &b| fits[b].total_cmp(&fits[a]));

@@ -1,15 +1,23 @@
 //! The stereo matching fitness of eqs. 12–18: project the model's sampling points into
 //! both images, score inner points by colour closeness (Table 1) and outer points by
 //! their hue against `H̄_in`, and combine left and right with the similarity factor g.
+//!
+//! A point costs a few dozen vectorised `f32` operations (pose, pinhole, distortion) and
+//! one read of a [`LookupImage`]; scores are counted, not summed per point. The hot
+//! loop lives in `kernel`.
 
-use nalgebra::{Isometry3, Matrix3, Point2, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point2};
 
-use crate::camera::Intrinsics;
+use crate::camera::{Intrinsics, StereoRig};
 use crate::color::{hue_distance, is_chromatic};
 use crate::config::FitnessParams;
-use crate::frame::{ColorPlane, FrameLevel};
+use crate::frame::{FrameLevel, PixelColor};
+use crate::lookup::LevelLookup;
+
+mod kernel;
 use crate::model::PhotoModel;
 use crate::pose::PoseSize;
+use kernel::Projection;
 
 /// How an outer point decides that it sees the target rather than background.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,17 +35,28 @@ pub struct Fitness {
     pub f: f64,
     pub left: f64,
     pub right: f64,
+    /// What the search ranks by: `F`, plus in robust mode the weighted share of inner
+    /// points on which the two views agree.
+    pub score: f64,
 }
 
-/// Sampling points in struct-of-arrays form (photo pixels from the box centre).
+/// Left–right colour agreement tolerances (tighter than the model match: both views
+/// see the same surface through the same kind of camera).
+const STEREO_HUE_TOLERANCE: u8 = 5;
+const STEREO_SAT_TOLERANCE: u8 = 25;
+
+/// Sampling points in struct-of-arrays form (photo pixels from the box centre). Inner
+/// points of chromatic colour come first, so the kernel runs two branch-free loops.
 #[derive(Debug, Clone, Default)]
 pub struct PointSet {
-    pub inner_x: Vec<f64>,
-    pub inner_y: Vec<f64>,
+    pub inner_x: Vec<f32>,
+    pub inner_y: Vec<f32>,
     pub inner_code: Vec<u8>,
     pub inner_sat: Vec<u8>,
-    pub outer_x: Vec<f64>,
-    pub outer_y: Vec<f64>,
+    /// The first `chromatic` inner points have a chromatic code.
+    pub chromatic: usize,
+    pub outer_x: Vec<f32>,
+    pub outer_y: Vec<f32>,
 }
 
 impl PointSet {
@@ -47,17 +66,27 @@ impl PointSet {
     pub fn from_model(model: &PhotoModel, params: &FitnessParams, stride: usize) -> Self {
         let classes = params.classes();
         let inner: Vec<[f64; 2]> = model.inner.iter().map(|p| [p.x, p.y]).collect();
-        let mut set = PointSet::default();
-        for (members, [x, y]) in blocks(&inner, model.step_px, stride) {
-            let (h, s, v) = mean_hsv(members.iter().map(|&i| &model.inner[i]));
-            set.inner_x.push(x);
-            set.inner_y.push(y);
-            set.inner_code.push(classes.code(h, s, v));
-            set.inner_sat.push(s);
+        let mut points: Vec<([f64; 2], u8, u8)> = blocks(&inner, model.step_px, stride)
+            .into_iter()
+            .map(|(members, xy)| {
+                let (h, s, v) = mean_hsv(members.iter().map(|&i| &model.inner[i]));
+                (xy, classes.code(h, s, v), s)
+            })
+            .collect();
+        points.sort_by_key(|p| !is_chromatic(p.1));
+        let mut set = PointSet {
+            chromatic: points.iter().filter(|p| is_chromatic(p.1)).count(),
+            ..Default::default()
+        };
+        for ([x, y], code, sat) in points {
+            set.inner_x.push(x as f32);
+            set.inner_y.push(y as f32);
+            set.inner_code.push(code);
+            set.inner_sat.push(sat);
         }
         for (_, [x, y]) in blocks(&model.outer, model.step_px, stride) {
-            set.outer_x.push(x);
-            set.outer_y.push(y);
+            set.outer_x.push(x as f32);
+            set.outer_y.push(y as f32);
         }
         set
     }
@@ -85,6 +114,8 @@ pub struct Scorer {
     /// A candidate whose model spans fewer full-resolution pixels than this along either
     /// side (in either image) scores 0: a speck of the right colour is no match.
     pub min_extent_px: f64,
+    /// Weight of the left–right agreement in [`Fitness::score`] (0: rank by `F` alone).
+    pub stereo_weight: f64,
     /// Model frame size `L_P`, `B_P` in photo pixels.
     pub box_px: [f64; 2],
     pub left_from_hand: Isometry3<f64>,
@@ -94,13 +125,6 @@ pub struct Scorer {
     pub center_code: u8,
     /// Mean saturation of the central rectangle's chromatic points.
     pub center_sat: u8,
-}
-
-/// Per-camera transform of one candidate: a model point (mm) maps to `t + x·ax + y·ay`.
-struct Placement {
-    t: Vector3<f64>,
-    ax: Vector3<f64>,
-    ay: Vector3<f64>,
 }
 
 impl Scorer {
@@ -118,6 +142,7 @@ impl Scorer {
             min_facing_cos,
             sat_tolerance,
             min_extent_px: 0.0,
+            stereo_weight: 0.0,
             box_px: [model.l_p, model.b_p],
             left_from_hand,
             mean_hue: (model.mean_hue.round() as u32 % 180) as u8,
@@ -126,118 +151,114 @@ impl Scorer {
         }
     }
 
-    /// Transforms of the candidate into the left and right cameras, `None` when the
-    /// model is seen from behind or too edge-on by either camera.
-    fn placements(&self, level: &FrameLevel, c: &PoseSize) -> Option<[Placement; 2]> {
+    /// One pyramid level's lookup images for this scorer (once per frame).
+    pub fn lookup(&self, level: &FrameLevel) -> LevelLookup {
+        LevelLookup::new(level, |c| self.outer_is_target(c))
+    }
+
+    /// Projections of the candidate into the left and right images, `None` when
+    /// the model is seen from behind or too edge-on by either camera, or too small.
+    fn placements(&self, level: &LevelLookup, c: &PoseSize) -> Option<[Projection; 2]> {
         let left_from_model = self.left_from_hand * c.hand_from_model();
         let right_from_model = level.rig.right_from_left * left_from_model;
-        let (inv_a, inv_b) = (1.0 / c.alpha, 1.0 / c.beta());
-        let mut out = Vec::with_capacity(2);
-        for (iso, cam) in [(left_from_model, &level.rig.left), (right_from_model, &level.rig.right)] {
-            let r: Matrix3<f64> = iso.rotation.to_rotation_matrix().into_inner();
-            let t = iso.translation.vector;
-            let normal = r.column(2).into_owned();
-            // The photo's face looks along −z_M; it faces the camera when t·z_M > 0.
-            let facing = t.dot(&normal) / t.norm().max(1e-9);
-            let (ax, ay) = (r.column(0) * inv_a, r.column(1) * inv_b);
-            // Approximate image extent of each model side, in full-resolution pixels.
-            let px = cam.fx / level.scale / t.z.max(1e-9);
-            let too_small = (ax * self.box_px[0]).norm() * px < self.min_extent_px
-                || (ay * self.box_px[1]).norm() * px < self.min_extent_px;
-            if facing.is_nan() || facing <= self.min_facing_cos || too_small {
-                return None;
-            }
-            out.push(Placement { t, ax, ay });
-        }
-        let right = out.pop()?;
-        let left = out.pop()?;
+        let left = self.placement(level, &left_from_model, c, &level.rig.left)?;
+        let right = self.placement(level, &right_from_model, c, &level.rig.right)?;
         Some([left, right])
     }
 
-    /// `F_L` alone (eq. 12): the left image's score, for scans that fix depth later.
-    pub fn evaluate_left(&self, points: &PointSet, level: &FrameLevel, c: &PoseSize) -> f64 {
-        let Some([pl, _]) = self.placements(level, c) else {
-            return 0.0;
-        };
-        let m = self.params.e1 * points.inner_x.len() as f64 + self.params.e3 * points.outer_x.len() as f64;
-        if m <= 0.0 {
-            return 0.0;
+    /// The projection into one camera, or `None` per [`Scorer::placements`].
+    fn placement(
+        &self,
+        level: &LevelLookup,
+        cam_from_model: &Isometry3<f64>,
+        c: &PoseSize,
+        cam: &Intrinsics,
+    ) -> Option<Projection> {
+        let r: Matrix3<f64> = cam_from_model.rotation.to_rotation_matrix().into_inner();
+        let t = cam_from_model.translation.vector;
+        let normal = r.column(2).into_owned();
+        // The photo's face looks along −z_M; it faces the camera when t·z_M > 0.
+        let facing = t.dot(&normal) / t.norm().max(1e-9);
+        let (ax, ay) = (r.column(0) / c.alpha, r.column(1) / c.beta());
+        // Approximate image extent of each model side, in full-resolution pixels.
+        let px = cam.fx / level.scale / t.z.max(1e-9);
+        let too_small = (ax * self.box_px[0]).norm() * px < self.min_extent_px
+            || (ay * self.box_px[1]).norm() * px < self.min_extent_px;
+        if facing.is_nan() || facing <= self.min_facing_cos || too_small {
+            return None;
         }
-        self.image_sum(points, &level.left, &level.rig.left, &pl) / m
+        Some(kernel::projection(cam, [&ax, &ay, &t]))
     }
 
-    /// Eq. 18 for one candidate on one pyramid level.
-    pub fn evaluate(&self, points: &PointSet, level: &FrameLevel, c: &PoseSize) -> Fitness {
+    /// `F_L` alone (eq. 12): the left image's score, for scans that fix depth later.
+    pub fn evaluate_left(&self, points: &PointSet, level: &LevelLookup, c: &PoseSize) -> f64 {
+        let left_from_model = self.left_from_hand * c.hand_from_model();
+        let Some(pl) = self.placement(level, &left_from_model, c, &level.rig.left) else {
+            return 0.0;
+        };
+        let (close, background) = kernel::count_left(points, &level.left, &pl, &self.tolerances());
+        self.image_score(points, close, background)
+    }
+
+    /// Eq. 18 for one candidate on one pyramid level, and its search score.
+    pub fn evaluate(&self, points: &PointSet, level: &LevelLookup, c: &PoseSize) -> Fitness {
         let Some([pl, pr]) = self.placements(level, c) else {
             return Fitness::default();
         };
-        let m = self.params.e1 * points.inner_x.len() as f64 + self.params.e3 * points.outer_x.len() as f64;
-        if m <= 0.0 {
-            return Fitness::default();
-        }
-        let fl = self.image_sum(points, &level.left, &level.rig.left, &pl) / m;
-        let fr = self.image_sum(points, &level.right, &level.rig.right, &pr) / m;
+        let counts = kernel::count(points, [&level.left, &level.right], [&pl, &pr], &self.tolerances());
+        let fl = self.image_score(points, counts.close[0], counts.background[0]);
+        let fr = self.image_score(points, counts.close[1], counts.background[1]);
         let g = if fl == 0.0 || fr == 0.0 {
             0.0
         } else {
             let d = fl / fr - self.params.mu;
             (-(d * d) / (2.0 * self.params.sigma * self.params.sigma)).exp()
         };
+        let f = (fl + fr) / 2.0 * (1.0 + g);
+        let confirmed = counts.confirmed as f64 / points.inner_x.len().max(1) as f64;
         Fitness {
-            f: (fl + fr) / 2.0 * (1.0 + g),
+            f,
             left: fl,
             right: fr,
+            score: f + self.stereo_weight * confirmed,
         }
     }
 
-    /// Sum of eqs. 15 and 16 over all points in one image.
-    fn image_sum(&self, points: &PointSet, plane: &ColorPlane, cam: &Intrinsics, p: &Placement) -> f64 {
+    fn tolerances(&self) -> kernel::Tolerances {
+        kernel::Tolerances {
+            hue: self.params.inner_hue_tolerance,
+            sat: self.sat_tolerance,
+            stereo_hue: STEREO_HUE_TOLERANCE,
+            stereo_sat: STEREO_SAT_TOLERANCE,
+        }
+    }
+
+    /// `F_L` or `F_R` (eqs. 12–16) from an image's counts: the point scores over `M`,
+    /// the score of a perfect match.
+    fn image_score(&self, points: &PointSet, close: u32, background: u32) -> f64 {
         let pr = &self.params;
-        let mut sum = 0.0;
-        for i in 0..points.inner_x.len() {
-            sum += match pixel(plane, cam, p, points.inner_x[i], points.inner_y[i]) {
-                Some(idx) if self.inner_close(points.inner_code[i], points.inner_sat[i], plane, idx) => pr.e1,
-                _ => pr.e2,
-            };
+        let (n_inner, n_outer) = (points.inner_x.len() as f64, points.outer_x.len() as f64);
+        let m = pr.e1 * n_inner + pr.e3 * n_outer;
+        if m <= 0.0 {
+            return 0.0;
         }
-        for i in 0..points.outer_x.len() {
-            sum += match pixel(plane, cam, p, points.outer_x[i], points.outer_y[i]) {
-                Some(idx) if !self.outer_is_target(plane, idx) => pr.e3,
-                _ => pr.e4,
-            };
-        }
-        sum
-    }
-
-    /// Figure 8: achromatic stored colours match the same class; chromatic ones match a
-    /// chromatic pixel of close hue.
-    #[inline]
-    fn inner_close(&self, model: u8, model_sat: u8, plane: &ColorPlane, idx: usize) -> bool {
-        let image = plane.px[idx].code;
-        if is_chromatic(model) {
-            is_chromatic(image)
-                && hue_distance(model, image) <= self.params.inner_hue_tolerance
-                && model_sat.abs_diff(plane.px[idx].sat) <= self.sat_tolerance
-        } else {
-            model == image
-        }
+        let (close, background) = (close as f64, background as f64);
+        (pr.e1 * close + pr.e2 * (n_inner - close) + pr.e3 * background + pr.e4 * (n_outer - background)) / m
     }
 
     /// True when an outer point's pixel looks like the target (eq. 16's `e4` case).
-    #[inline]
-    fn outer_is_target(&self, plane: &ColorPlane, idx: usize) -> bool {
+    fn outer_is_target(&self, px: &PixelColor) -> bool {
         let threshold = self.params.outer_hue_threshold;
         let mean_hue = self.mean_hue;
         match self.rule {
-            OuterRule::RawHue => hue_distance(plane.px[idx].hue, mean_hue) < threshold,
+            OuterRule::RawHue => hue_distance(px.hue, mean_hue) < threshold,
             OuterRule::ColorClass => {
-                let code = plane.px[idx].code;
                 if is_chromatic(self.center_code) {
-                    is_chromatic(code)
-                        && hue_distance(code, mean_hue) < threshold
-                        && plane.px[idx].sat.abs_diff(self.center_sat) <= self.sat_tolerance
+                    is_chromatic(px.code)
+                        && hue_distance(px.code, mean_hue) < threshold
+                        && px.sat.abs_diff(self.center_sat) <= self.sat_tolerance
                 } else {
-                    code == self.center_code
+                    px.code == self.center_code
                 }
             }
         }
@@ -245,15 +266,15 @@ impl Scorer {
 
     /// Projected pixel positions of all inner and outer points in the left and right
     /// images (for overlays); `None` for points behind a camera.
-    pub fn project_points(&self, points: &PointSet, level: &FrameLevel, c: &PoseSize) -> [ProjectedPoints; 2] {
+    pub fn project_points(&self, points: &PointSet, rig: &StereoRig, c: &PoseSize) -> [ProjectedPoints; 2] {
         let left_from_model = self.left_from_hand * c.hand_from_model();
-        let right_from_model = level.rig.right_from_left * left_from_model;
-        let [l, r] = [(left_from_model, &level.rig.left), (right_from_model, &level.rig.right)].map(|(iso, cam)| {
-            let proj = |x: &[f64], y: &[f64]| -> Vec<Option<Point2<f64>>> {
+        let right_from_model = rig.right_from_left * left_from_model;
+        let [l, r] = [(left_from_model, &rig.left), (right_from_model, &rig.right)].map(|(iso, cam)| {
+            let proj = |x: &[f32], y: &[f32]| -> Vec<Option<Point2<f64>>> {
                 x.iter()
                     .zip(y)
                     .map(|(&px, &py)| {
-                        let p = iso * nalgebra::Point3::new(px / c.alpha, py / c.beta(), 0.0);
+                        let p = iso * nalgebra::Point3::new(px as f64 / c.alpha, py as f64 / c.beta(), 0.0);
                         cam.project(&p)
                     })
                     .collect()
@@ -318,31 +339,14 @@ fn mean_hsv<'a>(points: impl Iterator<Item = &'a crate::model::InnerPoint>) -> (
     )
 }
 
-/// The pixel index a model point (photo pixels from the box centre) lands on, or `None`
-/// when it falls outside the image or behind the camera.
-#[inline(always)]
-fn pixel(plane: &ColorPlane, cam: &Intrinsics, p: &Placement, x: f64, y: f64) -> Option<usize> {
-    let c = p.t + p.ax * x + p.ay * y;
-    if c.z <= 1e-6 {
-        return None;
-    }
-    let (xd, yd) = cam.distort(c.x / c.z, c.y / c.z);
-    // Nearest pixel: +0.5 then truncation (valid once the value is known non-negative).
-    let u = cam.fx * xd + cam.cx + 0.5;
-    let v = cam.fy * yd + cam.cy + 0.5;
-    if !(u >= 0.0 && v >= 0.0 && u < plane.width as f64 && v < plane.height as f64) {
-        return None;
-    }
-    Some(v as usize * plane.width + u as usize)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::StereoRig;
+    use crate::camera::{Intrinsics, StereoRig};
     use crate::color::GRAY;
-    use crate::frame::PixelColor;
+    use crate::frame::{ColorPlane, PixelColor};
     use crate::model::{InnerPoint, PixelBox};
+    use nalgebra::Vector3;
 
     /// A 20×20-pixel world: pinhole f = 100, identical left and right cameras
     /// (zero baseline) so both images are the same tiny hand-made picture.
@@ -425,6 +429,10 @@ mod tests {
         )
     }
 
+    fn score(s: &Scorer, pts: &PointSet, lv: &FrameLevel, c: &PoseSize) -> Fitness {
+        s.evaluate(pts, &s.lookup(lv), c)
+    }
+
     #[test]
     fn perfect_match_scores_two() {
         // Red 4×4 patch around the centre pixel (9.5, 9.5) → pixels 8..=11; grey elsewhere.
@@ -436,7 +444,7 @@ mod tests {
             }
         });
         let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
-        let f = scorer(OuterRule::ColorClass).evaluate(&pts, &lv, &candidate());
+        let f = score(&scorer(OuterRule::ColorClass), &pts, &lv, &candidate());
         // All 4 inner close (4·2) + 4 outer background (4·0.5) → F_L = F_R = 1, g = 1, F = 2.
         assert!((f.left - 1.0).abs() < 1e-12 && (f.right - 1.0).abs() < 1e-12);
         assert!((f.f - 2.0).abs() < 1e-12);
@@ -452,7 +460,7 @@ mod tests {
             }
         });
         let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
-        let f = scorer(OuterRule::RawHue).evaluate(&pts, &lv, &candidate());
+        let f = score(&scorer(OuterRule::RawHue), &pts, &lv, &candidate());
         // Raw hue of grey is 0 = H̄_in: every outer point scores e4 = −1.9.
         let expected = (4.0 * 2.0 - 4.0 * 1.9) / (4.0 * 2.0 + 4.0 * 0.5);
         assert!((f.left - expected).abs() < 1e-12, "{f:?}");
@@ -465,21 +473,21 @@ mod tests {
         let lv = level(|_, _| 120);
         let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
         let s = scorer(OuterRule::ColorClass);
-        let f = s.evaluate(&pts, &lv, &candidate());
+        let f = score(&s, &pts, &lv, &candidate());
         assert!((f.left - (4.0 * -0.5 + 4.0 * 0.5) / 10.0).abs() < 1e-12);
         // Entirely outside the image: every point is a mismatch.
         let far = PoseSize {
             position: Vector3::new(500.0, 0.0, 100.0),
             ..candidate()
         };
-        let f = s.evaluate(&pts, &lv, &far);
+        let f = score(&s, &pts, &lv, &far);
         assert!((f.left - (4.0 * -0.5 + 4.0 * -1.9) / 10.0).abs() < 1e-12, "{f:?}");
         // Turned 180° about y: the camera sees the back of the photo.
         let back = PoseSize {
             eps: Vector3::new(0.0, 1.0, 0.0),
             ..candidate()
         };
-        assert_eq!(s.evaluate(&pts, &lv, &back), Fitness::default());
+        assert_eq!(score(&s, &pts, &lv, &back), Fitness::default());
     }
 
     #[test]
@@ -493,7 +501,7 @@ mod tests {
         });
         lv.right.px.iter_mut().for_each(|c| c.code = 120);
         let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
-        let f = scorer(OuterRule::ColorClass).evaluate(&pts, &lv, &candidate());
+        let f = score(&scorer(OuterRule::ColorClass), &pts, &lv, &candidate());
         // F_L = 1, F_R = 0 → g = 0, F = 0.5.
         assert_eq!(f.right, 0.0);
         assert!((f.f - 0.5).abs() < 1e-12);

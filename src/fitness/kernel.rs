@@ -1,0 +1,463 @@
+//! The hot loop: where each sample point lands and what it sees there.
+//!
+//! Points go through in chunks, three passes each, all but the second written so the
+//! compiler vectorises them: project the chunk through the camera model (pose, pinhole,
+//! Brown–Conrady distortion, in `f32`) to pixel indices, read the texels, count the
+//! matches. No branch depends on the image: a point off the image is clamped onto the
+//! ring of outside texels around it (see [`crate::lookup`]). On x86-64 CPUs with AVX2
+//! the same code is compiled a second time for 8-wide vectors and chosen at run time.
+
+use nalgebra::Vector3;
+
+use super::PointSet;
+use crate::camera::Intrinsics;
+use crate::lookup::{LookupImage, Texel};
+
+/// Where a model point (photo pixels) lands in one camera for one candidate: the
+/// camera-frame axes and origin of the model (`[ax | ay | t]`, row-major) and the
+/// camera's intrinsics, all in `f32`.
+#[derive(Debug, Clone, Copy)]
+pub struct Projection {
+    m: [f32; 9],
+    fx: f32,
+    fy: f32,
+    /// Principal point in padded texel coordinates.
+    cx: f32,
+    cy: f32,
+    k: [f32; 5],
+}
+
+/// Points per chunk: the index buffer stays in L1 and on the stack.
+const CHUNK: usize = 256;
+/// Adding 2²³ to a float in `[0, 2²³)` leaves its nearest integer in the mantissa bits.
+const ROUND: f32 = 8_388_608.0;
+/// Smallest depth in front of the camera that counts as visible, mm.
+const MIN_DEPTH: f32 = 1e-3;
+
+/// The projection of a model placed at `t` with axes `ax`, `ay` (mm per photo pixel, in
+/// the camera's frame) through `cam` onto the padded image.
+pub fn projection(cam: &Intrinsics, [ax, ay, t]: [&Vector3<f64>; 3]) -> Projection {
+    let mut m = [0.0f32; 9];
+    for (col, v) in [ax, ay, t].into_iter().enumerate() {
+        for row in 0..3 {
+            m[3 * row + col] = v[row] as f32;
+        }
+    }
+    Projection {
+        m,
+        fx: cam.fx as f32,
+        fy: cam.fy as f32,
+        cx: (cam.cx + 1.0) as f32,
+        cy: (cam.cy + 1.0) as f32,
+        k: [cam.k1, cam.k2, cam.p1, cam.p2, cam.k3].map(|k| k as f32),
+    }
+}
+
+/// Padded-image coordinates of a model point, `(0, 0)` (the outside ring) behind the
+/// camera.
+#[inline(always)]
+fn pixel(p: &Projection, x: f32, y: f32) -> (f32, f32) {
+    let (m, [k1, k2, p1, p2, k3]) = (&p.m, p.k);
+    let z = m[6] * x + m[7] * y + m[8];
+    let inv = 1.0 / z;
+    let xn = (m[0] * x + m[1] * y + m[2]) * inv;
+    let yn = (m[3] * x + m[4] * y + m[5]) * inv;
+    let r2 = xn * xn + yn * yn;
+    let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+    let xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn);
+    let yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn;
+    if z > MIN_DEPTH {
+        (p.fx * xd + p.cx, p.fy * yd + p.cy)
+    } else {
+        (0.0, 0.0)
+    }
+}
+
+/// Index buffers of one chunk.
+struct Chunk {
+    idx: [u32; CHUNK],
+    tex: [Texel; CHUNK],
+}
+
+impl Chunk {
+    /// The texels under points `(xs[i], ys[i])` (at most [`CHUNK`]): nearest pixel, or
+    /// the outside ring for points off the image or behind the camera.
+    #[inline(always)]
+    fn read(&mut self, img: &LookupImage, p: &Projection, xs: &[f32], ys: &[f32]) -> &[Texel] {
+        let (u_max, v_max) = ((img.width - 1) as f32, (img.height - 1) as f32);
+        let width = img.width as f32;
+        // A local copy keeps the loop free of loads the compiler cannot hoist.
+        let p = *p;
+        for ((&x, &y), o) in xs.iter().zip(ys).zip(self.idx.iter_mut()) {
+            let (u, v) = pixel(&p, x, y);
+            // `max` first: it turns NaN into 0.
+            let ur = (u.max(0.0).min(u_max) + ROUND) - ROUND;
+            let vr = (v.max(0.0).min(v_max) + ROUND) - ROUND;
+            *o = (vr * width + ur + ROUND).to_bits() - ROUND.to_bits();
+        }
+        let n = xs.len();
+        for (t, &i) in self.tex.iter_mut().zip(&self.idx[..n]) {
+            *t = img.px[i as usize];
+        }
+        &self.tex[..n]
+    }
+}
+
+/// Colour tolerances: a model point against its pixel, and the left pixel against the
+/// right one.
+#[derive(Debug, Clone, Copy)]
+pub struct Tolerances {
+    pub hue: u8,
+    pub sat: u8,
+    pub stereo_hue: u8,
+    pub stereo_sat: u8,
+}
+
+/// What one candidate's points see in both images.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Counts {
+    /// Inner points whose colour matches (Fig. 8 / Table 1), left and right.
+    pub close: [u32; 2],
+    /// Outer points that see background (eq. 16), left and right.
+    pub background: [u32; 2],
+    /// Inner points that match in the left image and whose right pixel shows the same
+    /// colour (chromatic: hues within `stereo_hue`, saturations within `stereo_sat`;
+    /// achromatic: the same class): both views confirm the same surface point, as they
+    /// do where depth and tilt are right.
+    pub confirmed: u32,
+}
+
+/// Circular distance of two chromatic codes (≥ 90 when either is not chromatic).
+#[inline(always)]
+fn hue_gap(a: u32, b: u32) -> u32 {
+    let d = a.abs_diff(b).min(180);
+    (180 - d).min(d)
+}
+
+/// Fig. 8 for a chromatic model colour: a chromatic pixel of close hue and saturation.
+#[inline(always)]
+fn chromatic_match(t: Texel, code: u8, sat: u8, tol: &Tolerances) -> bool {
+    let (t_code, t_sat) = (t & 0xff, (t >> 8) & 0xff);
+    (t_code < 180) & (hue_gap(t_code, code as u32) <= tol.hue as u32) & (t_sat.abs_diff(sat as u32) <= tol.sat as u32)
+}
+
+/// Left and right pixels show the same colour (see [`Counts::confirmed`]).
+#[inline(always)]
+fn same_colour(l: Texel, r: Texel, tol: &Tolerances) -> bool {
+    let (lc, rc) = (l & 0xff, r & 0xff);
+    let (ls, rs) = ((l >> 8) & 0xff, (r >> 8) & 0xff);
+    (hue_gap(lc, rc) <= tol.stereo_hue as u32) & (ls.abs_diff(rs) <= tol.stereo_sat as u32)
+}
+
+/// `(close, background)` in the left image alone (the left-only scan); the right
+/// image and projection are not read.
+pub fn count_left(points: &PointSet, img: &LookupImage, p: &Projection, tol: &Tolerances) -> (u32, u32) {
+    let c = dispatch::<false>(points, [img, img], [p, p], tol);
+    (c.close[0], c.background[0])
+}
+
+/// [`Counts`] of one candidate, projected by `projections` into `images` (left, right).
+pub fn count(points: &PointSet, images: [&LookupImage; 2], projections: [&Projection; 2], tol: &Tolerances) -> Counts {
+    dispatch::<true>(points, images, projections, tol)
+}
+
+fn dispatch<const BOTH: bool>(
+    points: &PointSet,
+    images: [&LookupImage; 2],
+    projections: [&Projection; 2],
+    tol: &Tolerances,
+) -> Counts {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, the only feature `count_avx2` is compiled for.
+        return unsafe { count_avx2::<BOTH>(points, images, projections, tol) };
+    }
+    count_chunks::<BOTH>(points, images, projections, tol)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn count_avx2<const BOTH: bool>(
+    points: &PointSet,
+    images: [&LookupImage; 2],
+    projections: [&Projection; 2],
+    tol: &Tolerances,
+) -> Counts {
+    count_chunks::<BOTH>(points, images, projections, tol)
+}
+
+/// The counts; with `BOTH` false only the left image is read (right counts are copies).
+#[inline(always)]
+fn count_chunks<const BOTH: bool>(
+    points: &PointSet,
+    [left, right]: [&LookupImage; 2],
+    [pl, pr]: [&Projection; 2],
+    tol: &Tolerances,
+) -> Counts {
+    let new = || Chunk {
+        idx: [0; CHUNK],
+        tex: [0; CHUNK],
+    };
+    let (mut a, mut b) = (new(), new());
+    let mut c = Counts::default();
+    let (inner_x, inner_y) = (&points.inner_x[..], &points.inner_y[..]);
+    let chromatic = points.chromatic;
+    for start in (0..chromatic).step_by(CHUNK) {
+        let r = start..(start + CHUNK).min(chromatic);
+        let (xs, ys) = (&inner_x[r.clone()], &inner_y[r.clone()]);
+        let tl = a.read(left, pl, xs, ys);
+        let tr = if BOTH { b.read(right, pr, xs, ys) } else { tl };
+        let model = points.inner_code[r.clone()].iter().zip(&points.inner_sat[r]);
+        for ((&l, &r), (&code, &sat)) in tl.iter().zip(tr).zip(model) {
+            let ml = chromatic_match(l, code, sat, tol);
+            c.close[0] += ml as u32;
+            c.close[1] += chromatic_match(r, code, sat, tol) as u32;
+            c.confirmed += (ml & (r & 0xff < 180) & same_colour(l, r, tol)) as u32;
+        }
+    }
+    for start in (chromatic..inner_x.len()).step_by(CHUNK) {
+        let r = start..(start + CHUNK).min(inner_x.len());
+        let (xs, ys) = (&inner_x[r.clone()], &inner_y[r.clone()]);
+        let tl = a.read(left, pl, xs, ys);
+        let tr = if BOTH { b.read(right, pr, xs, ys) } else { tl };
+        for ((&l, &r), &code) in tl.iter().zip(tr).zip(&points.inner_code[r]) {
+            let (ml, mr) = ((l & 0xff) == code as u32, (r & 0xff) == code as u32);
+            c.close[0] += ml as u32;
+            c.close[1] += mr as u32;
+            c.confirmed += (ml & mr) as u32;
+        }
+    }
+    let n_outer = points.outer_x.len();
+    let mut target = [0u32; 2];
+    for start in (0..n_outer).step_by(CHUNK) {
+        let r = start..(start + CHUNK).min(n_outer);
+        let (xs, ys) = (&points.outer_x[r.clone()], &points.outer_y[r]);
+        let tl = a.read(left, pl, xs, ys);
+        let tr = if BOTH { b.read(right, pr, xs, ys) } else { tl };
+        for (&l, &r) in tl.iter().zip(tr) {
+            target[0] += (l >> 16) & 1;
+            target[1] += (r >> 16) & 1;
+        }
+    }
+    c.background = target.map(|t| n_outer as u32 - t);
+    c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::{hue_distance, is_chromatic};
+    use crate::frame::{ColorPlane, PixelColor};
+    use crate::lookup::TARGET_BIT;
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    const W: usize = 640;
+    const H: usize = 360;
+
+    /// A distorted camera for a 640×360 image.
+    fn camera() -> Intrinsics {
+        let mut cam = Intrinsics::pinhole(350.0, 350.0, 319.5, 179.5);
+        cam.k1 = -0.17;
+        cam.k2 = 0.03;
+        cam.p1 = 1e-3;
+        cam
+    }
+
+    fn plane(px: impl Fn(usize, &mut StdRng) -> PixelColor, rng: &mut StdRng) -> ColorPlane {
+        ColorPlane {
+            width: W,
+            height: H,
+            px: (0..W * H).map(|i| px(i, rng)).collect(),
+        }
+    }
+
+    /// Random model points (chromatic first, then achromatic) and outer points.
+    fn points(rng: &mut StdRng) -> PointSet {
+        let (n, chromatic) = (700, 500);
+        PointSet {
+            inner_x: (0..n).map(|_| rng.random_range(-150.0..150.0)).collect(),
+            inner_y: (0..n).map(|_| rng.random_range(-100.0..100.0)).collect(),
+            inner_code: (0..n)
+                .map(|i| {
+                    if i < chromatic {
+                        rng.random_range(0..180)
+                    } else {
+                        rng.random_range(252..=254)
+                    }
+                })
+                .collect(),
+            inner_sat: (0..n).map(|_| rng.random()).collect(),
+            chromatic,
+            outer_x: (0..300).map(|_| rng.random_range(-170.0..170.0)).collect(),
+            outer_y: (0..300).map(|_| rng.random_range(-120.0..120.0)).collect(),
+        }
+    }
+
+    /// A random placement in front of the camera, sometimes partly beside or behind it.
+    fn placement(rng: &mut StdRng) -> [Vector3<f64>; 3] {
+        let angle: f64 = rng.random_range(-0.6..0.6);
+        let scale = rng.random_range(0.3..3.0);
+        let ax = Vector3::new(angle.cos(), angle.sin(), rng.random_range(-0.3..0.3)) * scale;
+        let ay = Vector3::new(-angle.sin(), angle.cos(), rng.random_range(-0.3..0.3)) * scale;
+        let t = Vector3::new(
+            rng.random_range(-600.0..600.0),
+            rng.random_range(-400.0..400.0),
+            rng.random_range(-50.0..1500.0),
+        );
+        [ax, ay, t]
+    }
+
+    const TOL: Tolerances = Tolerances {
+        hue: 15,
+        sat: 50,
+        stereo_hue: 5,
+        stereo_sat: 25,
+    };
+
+    /// The texel under inner (`outer` false) or outer point `i`, one point at a time.
+    fn texel_at(pts: &PointSet, img: &LookupImage, p: &Projection, i: usize, outer: bool) -> Texel {
+        let (x, y) = if outer {
+            (pts.outer_x[i], pts.outer_y[i])
+        } else {
+            (pts.inner_x[i], pts.inner_y[i])
+        };
+        let (u, v) = pixel(p, x, y);
+        let u = u.max(0.0).min((img.width - 1) as f32).round_ties_even() as usize;
+        let v = v.max(0.0).min((img.height - 1) as f32).round_ties_even() as usize;
+        img.px[v * img.width + u]
+    }
+
+    /// The plain scalar counts, one point at a time with branches.
+    fn reference(pts: &PointSet, images: [&LookupImage; 2], projections: [&Projection; 2]) -> Counts {
+        let mut c = Counts::default();
+        for i in 0..pts.inner_x.len() {
+            let [l, r] = [0, 1].map(|e| texel_at(pts, images[e], projections[e], i, false));
+            let m = pts.inner_code[i];
+            let matches = |t: Texel| {
+                let (code, sat) = ((t & 0xff) as u8, (t >> 8) as u8);
+                if is_chromatic(m) {
+                    is_chromatic(code) && hue_distance(m, code) <= TOL.hue && pts.inner_sat[i].abs_diff(sat) <= TOL.sat
+                } else {
+                    code == m
+                }
+            };
+            let (ml, mr) = (matches(l), matches(r));
+            c.close[0] += ml as u32;
+            c.close[1] += mr as u32;
+            let (lc, rc) = ((l & 0xff) as u8, (r & 0xff) as u8);
+            let same = if is_chromatic(m) {
+                is_chromatic(rc)
+                    && hue_distance(lc, rc) <= TOL.stereo_hue
+                    && ((l >> 8) as u8).abs_diff((r >> 8) as u8) <= TOL.stereo_sat
+            } else {
+                mr
+            };
+            c.confirmed += (ml && same) as u32;
+        }
+        for e in 0..2 {
+            c.background[e] = (0..pts.outer_x.len())
+                .filter(|&i| texel_at(pts, images[e], projections[e], i, true) & TARGET_BIT == 0)
+                .count() as u32;
+        }
+        c
+    }
+
+    fn random_colours(rng: &mut StdRng) -> LookupImage {
+        let colours = plane(
+            |_, rng| PixelColor {
+                code: if rng.random::<f64>() < 0.8 {
+                    rng.random_range(0..180)
+                } else {
+                    rng.random_range(252..=254)
+                },
+                sat: rng.random(),
+                hue: 0,
+            },
+            rng,
+        );
+        LookupImage::new(&colours, |c| c.sat > 128)
+    }
+
+    #[test]
+    fn fast_path_counts_exactly_like_the_scalar_reference() {
+        let mut rng = StdRng::seed_from_u64(5);
+        let (left, right) = (random_colours(&mut rng), random_colours(&mut rng));
+        let (cam, pts) = (camera(), points(&mut rng));
+        let (mut seen, mut confirmed) = (0, 0);
+        for _ in 0..300 {
+            let [ax, ay, t] = placement(&mut rng);
+            // The right camera sees the placement shifted by a baseline.
+            let pl = projection(&cam, [&ax, &ay, &t]);
+            let pr = projection(&cam, [&ax, &ay, &(t + Vector3::new(-120.0, 0.0, 0.0))]);
+            let fast = count(&pts, [&left, &right], [&pl, &pr], &TOL);
+            assert_eq!(fast, reference(&pts, [&left, &right], [&pl, &pr]));
+            assert_eq!(count_chunks::<true>(&pts, [&left, &right], [&pl, &pr], &TOL), fast);
+            let (close, background) = count_left(&pts, &left, &pl, &TOL);
+            assert_eq!((close, background), (fast.close[0], fast.background[0]));
+            seen += (fast.close[0] > 0) as u32;
+            confirmed += fast.confirmed;
+        }
+        assert!(seen > 100, "most placements see part of the image: {seen}");
+        assert!(confirmed > 50, "some random matches are confirmed: {confirmed}");
+        // Identical views confirm exactly the left-image matches.
+        let p = projection(&cam, [&Vector3::x(), &Vector3::y(), &Vector3::new(0.0, 0.0, 300.0)]);
+        let same = count(&pts, [&left, &left], [&p, &p], &TOL);
+        assert_eq!(same.confirmed, same.close[0]);
+        assert!(same.confirmed > 0);
+    }
+
+    #[test]
+    fn points_land_on_the_pixel_the_camera_model_projects_to() {
+        // Each pixel's texel encodes its column (mod 180) and row (mod 256).
+        let mut rng = StdRng::seed_from_u64(6);
+        let coords = plane(
+            |i, _| PixelColor {
+                code: (i % W % 180) as u8,
+                sat: (i / W % 256) as u8,
+                hue: 0,
+            },
+            &mut rng,
+        );
+        let img = LookupImage::new(&coords, |_| false);
+        let cam = camera();
+        let mut chunk = Chunk {
+            idx: [0; CHUNK],
+            tex: [0; CHUNK],
+        };
+        let (mut exact, mut total) = (0, 0);
+        for _ in 0..200 {
+            let [ax, ay, t] = placement(&mut rng);
+            let p = projection(&cam, [&ax, &ay, &t]);
+            let (xs, ys): (Vec<f32>, Vec<f32>) = (0..CHUNK)
+                .map(|_| (rng.random_range(-150.0..150.0), rng.random_range(-100.0..100.0)))
+                .unzip();
+            let tex = chunk.read(&img, &p, &xs, &ys);
+            for ((&x, &y), &got) in xs.iter().zip(&ys).zip(tex) {
+                let q = t + ax * x as f64 + ay * y as f64;
+                let want = match cam.project(&nalgebra::Point3::from(q)) {
+                    Some(q) if q.x > -0.5 && q.y > -0.5 && q.x < W as f64 - 0.5 && q.y < H as f64 - 0.5 => {
+                        let (u, v) = (q.x.round() as usize, q.y.round() as usize);
+                        Some(((u % 180) as Texel) | ((v % 256) as Texel) << 8)
+                    }
+                    _ => None,
+                };
+                match want {
+                    Some(w) => {
+                        exact += (got == w) as u32;
+                        total += 1;
+                    }
+                    None => assert!(
+                        got == crate::lookup::OUTSIDE_TEXEL || q.z > 0.0,
+                        "behind or off the image"
+                    ),
+                }
+            }
+        }
+        assert!(total > 10_000, "{total} points on the image");
+        assert!(
+            exact as f64 >= 0.999 * total as f64,
+            "{exact} of {total} on the same pixel"
+        );
+    }
+}
