@@ -54,6 +54,7 @@ struct RawConfig {
     model: ModelSettings,
     fitness: FitnessParams,
     robust: RobustSettings,
+    tracking: TrackingSettings,
 }
 
 #[derive(Debug, Deserialize)]
@@ -207,6 +208,43 @@ impl Default for RobustSettings {
     }
 }
 
+/// `[tracking]`: the GA that lives across frames (the estimator process).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrackingSettings {
+    /// Individuals kept from frame to frame.
+    pub population: usize,
+    /// Generations run on each frame.
+    pub generations_per_frame: usize,
+    /// Pyramid level the tracking GA scores on (0 = full resolution).
+    pub level: usize,
+    /// Gaussian mutation step, in normalised gene units.
+    pub sigma: f64,
+    /// Below this `F` the object counts as not tracked (status `searching`).
+    pub min_fitness: f64,
+    /// Share of each generation replaced by view-prior immigrants while searching.
+    pub immigrants: f64,
+    /// Frames of searching before the object is `lost` and acquired afresh.
+    pub lost_after_frames: usize,
+    /// Generations of the one-shot robust search that (re)acquires the object.
+    pub acquire_generations: usize,
+}
+
+impl Default for TrackingSettings {
+    fn default() -> Self {
+        Self {
+            population: 40,
+            generations_per_frame: 6,
+            level: 0,
+            sigma: 0.003,
+            min_fitness: 1.0,
+            immigrants: 0.2,
+            lost_after_frames: 30,
+            acquire_generations: 300,
+        }
+    }
+}
+
 /// `[model]`: how `photopose model` samples the photo.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -292,6 +330,7 @@ pub struct Config {
     pub search: SearchSpace,
     pub ga: GaSettings,
     pub robust: RobustSettings,
+    pub tracking: TrackingSettings,
     pub model: ModelSettings,
     pub fitness: FitnessParams,
 }
@@ -418,6 +457,34 @@ impl Config {
                 format!("{} must be a non-negative number", robust.stereo_weight),
             ));
         }
+        let tracking = raw.tracking;
+        if tracking.population < 4 {
+            return Err(invalid("tracking", "population", "must be at least 4".into()));
+        }
+        if tracking.generations_per_frame == 0 || tracking.acquire_generations == 0 {
+            return Err(invalid(
+                "tracking",
+                "generations_per_frame",
+                "generations_per_frame and acquire_generations must be at least 1".into(),
+            ));
+        }
+        if !(tracking.sigma.is_finite() && tracking.sigma > 0.0) {
+            return Err(invalid("tracking", "sigma", format!("{} must be > 0", tracking.sigma)));
+        }
+        if !(0.0..1.0).contains(&tracking.immigrants) {
+            return Err(invalid(
+                "tracking",
+                "immigrants",
+                format!("{} must lie in [0, 1)", tracking.immigrants),
+            ));
+        }
+        if tracking.level >= robust.pyramid_levels {
+            return Err(invalid(
+                "tracking",
+                "level",
+                format!("{} must be below [robust] pyramid_levels", tracking.level),
+            ));
+        }
         let model = raw.model;
         if !(model.step_px.is_finite() && model.step_px >= 0.0) {
             return Err(invalid("model", "step_px", format!("{} must be ≥ 0", model.step_px)));
@@ -467,6 +534,7 @@ impl Config {
             search,
             ga,
             robust,
+            tracking,
             model,
             fitness,
         })

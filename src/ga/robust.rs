@@ -70,18 +70,17 @@ pub fn view_sample(problem: &Problem, rng: &mut impl Rng) -> Genes {
 }
 
 /// One population: genes and their fitness, sorted best first after [`Population::sort`].
-struct Population {
-    genes: Vec<Genes>,
-    fit: Vec<Fitness>,
+pub(crate) struct Population {
+    pub genes: Vec<Genes>,
+    pub fit: Vec<Fitness>,
+    /// Reused by [`Population::sort`].
+    scratch: Vec<(Genes, Fitness)>,
 }
 
 impl Population {
     /// The best `n` of `n · oversample` view-prior candidates on `level`.
     fn seeded(problem: &Problem, level: usize, n: usize, oversample: usize, rng: &mut impl Rng) -> Self {
-        let mut all = Self {
-            genes: (0..n * oversample.max(1)).map(|_| view_sample(problem, rng)).collect(),
-            fit: vec![Fitness::default(); n * oversample.max(1)],
-        };
+        let mut all = Self::new((0..n * oversample.max(1)).map(|_| view_sample(problem, rng)).collect());
         problem.evaluate_batch(level, &all.genes, &mut all.fit);
         let mut order = Vec::new();
         all.sort(&mut order);
@@ -90,14 +89,28 @@ impl Population {
         all
     }
 
-    fn sort(&mut self, order: &mut Vec<usize>) {
+    /// Unscored individuals.
+    pub fn new(genes: Vec<Genes>) -> Self {
+        Self {
+            fit: vec![Fitness::default(); genes.len()],
+            scratch: Vec::with_capacity(genes.len()),
+            genes,
+        }
+    }
+
+    /// Sorts best first.
+    pub fn sort(&mut self, order: &mut Vec<usize>) {
         rank(&self.fit, order);
-        self.genes = order.iter().map(|&i| self.genes[i]).collect();
-        self.fit = order.iter().map(|&i| self.fit[i]).collect();
+        self.scratch.clear();
+        self.scratch.extend(order.iter().map(|&i| (self.genes[i], self.fit[i])));
+        for (k, &(g, f)) in self.scratch.iter().enumerate() {
+            self.genes[k] = g;
+            self.fit[k] = f;
+        }
     }
 
     /// Replaces everything after the first `keep` by children of the survivors.
-    fn breed(
+    pub fn breed(
         &mut self,
         problem: &Problem,
         keep: usize,
@@ -170,10 +183,7 @@ pub fn run(
             while genes.len() < n {
                 genes.push(view_sample(problem, &mut rng));
             }
-            pops.push(Population {
-                fit: vec![Fitness::default(); n],
-                genes,
-            });
+            pops.push(Population::new(genes));
         } else {
             pops.push(Population::seeded(problem, coarsest, n, robust.prior_samples, &mut rng));
             evaluations += n * robust.prior_samples.max(1);
@@ -237,10 +247,8 @@ pub fn run(
         }
         if step == 0 && pops.len() > 1 {
             // The restarts merge: the best n individuals of all of them continue.
-            let mut all = Population {
-                genes: pops.iter().flat_map(|p| p.genes.iter().copied()).collect(),
-                fit: pops.iter().flat_map(|p| p.fit.iter().copied()).collect(),
-            };
+            let mut all = Population::new(pops.iter().flat_map(|p| p.genes.iter().copied()).collect());
+            all.fit = pops.iter().flat_map(|p| p.fit.iter().copied()).collect();
             all.sort(&mut order);
             all.genes.truncate(n);
             all.fit.truncate(n);

@@ -1,0 +1,78 @@
+//! The tracking GA on a rendered moving target, in process: acquisition on the first
+//! frame, then one step per frame at 60 fps while the card moves at 150 mm/s.
+
+use nalgebra::{Isometry3, Translation3, Vector3};
+use photopose::estimate::Prepared;
+use photopose::frame::StereoImages;
+use photopose::messages::status;
+use photopose::render::{self, Background, Card, Scene};
+use photopose::tracking::Tracker;
+
+use crate::scenes::{self, photo, rotation, PHOTOS};
+
+/// Position error (mm) of the tracked model origin on every frame of a 150 mm/s pass.
+#[test]
+fn tracks_a_card_moving_at_150_mm_per_s() {
+    let spec = scenes::all()
+        .into_iter()
+        .find(|s| s.name == "rocket-650-30")
+        .expect("scene");
+    let r = scenes::render(&spec, 3);
+    let rig = r
+        .config
+        .calibration
+        .rig(photopose::calibration::Resolution::HD)
+        .expect("HD");
+    let full = photo(spec.photo);
+    let [x, y, w, h] = spec.bbox;
+    let background: Vec<_> = PHOTOS.iter().filter(|p| **p != spec.photo).map(|p| photo(p)).collect();
+    let mut scene = Scene {
+        card: Card {
+            texture: image::imageops::crop_imm(&full, x as u32, y as u32, w as u32, h as u32).to_image(),
+            hand_from_model: r.hand_from_model,
+            size_mm: spec.size_mm,
+        },
+        background: Background::collage(&background, 3, 1600.0),
+        noise_sigma: 0.0,
+        brightness: 1.0,
+        occluder: None,
+        seed: 3,
+    };
+    let (fps, speed) = (60.0, 150.0);
+    let frames = 40;
+    let mut tracker = Tracker::new(&r.config, 7);
+    let mut errors = Vec::new();
+    for i in 0..frames {
+        let t = i as f64 / fps;
+        // Diagonal motion in the left-camera frame, slowly turning.
+        let along = Vector3::new(0.8, 0.5, 0.33).normalize() * (speed * t);
+        let left_from_model = Isometry3::from_parts(
+            Translation3::from(Vector3::from(spec.position) + along - Vector3::new(60.0, 40.0, 0.0)),
+            rotation([spec.rotation_deg[0], 0.0, 20.0 * t]),
+        );
+        scene.card.hand_from_model = r.config.left_from_hand.inverse() * left_from_model;
+        let sbs = render::render(&rig, &r.config.left_from_hand, &scene);
+        let images = StereoImages::from_sbs(&sbs, std::path::Path::new("frame")).expect("even width");
+        let prepared = Prepared::new(&r.model, &images, &r.config).expect("HD frame");
+        let problem = prepared.problem(&r.model, &r.config);
+        let est = tracker.step(&problem);
+        let err = (est.best.position - scene.card.hand_from_model.translation.vector).norm();
+        if i == 0 {
+            assert!(err < 10.0, "acquisition ends {err:.1} mm off");
+            assert_eq!(est.generations as usize, r.config.tracking.acquire_generations);
+        } else {
+            assert_eq!(est.generations as usize, r.config.tracking.generations_per_frame);
+            assert_eq!(est.status, status::TRACKING, "frame {i}: F {:.3}", est.fitness.f);
+            errors.push(err);
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    let p95 = errors[(errors.len() as f64 * 0.95).ceil() as usize - 1];
+    println!(
+        "tracking at {speed} mm/s: median {:.1} mm, p95 {p95:.1} mm, max {:.1} mm over {} frames",
+        errors[errors.len() / 2],
+        errors.last().unwrap(),
+        errors.len()
+    );
+    assert!(p95 <= 10.0, "p95 tracking error {p95:.1} mm");
+}
