@@ -76,6 +76,27 @@ impl StereoImages {
         })
     }
 
+    /// Splits a side-by-side RGB8 buffer (`height` rows of `row_stride` bytes, eyes of
+    /// `width` pixels); `None` when the buffer is too small for that.
+    pub fn from_rgb8_sbs(width: usize, height: usize, row_stride: usize, bytes: &[u8]) -> Option<Self> {
+        let row = 2 * width * 3;
+        if width == 0 || height == 0 || row_stride < row || bytes.len() < row_stride * (height - 1) + row {
+            return None;
+        }
+        let eye = |e: usize| {
+            let mut out = Vec::with_capacity(width * height * 3);
+            for y in 0..height {
+                let start = y * row_stride + e * width * 3;
+                out.extend_from_slice(&bytes[start..start + width * 3]);
+            }
+            RgbImage::from_raw(width as u32, height as u32, out)
+        };
+        Some(Self {
+            left: eye(0)?,
+            right: eye(1)?,
+        })
+    }
+
     /// Reads a side-by-side frame file.
     pub fn load_sbs(path: &Path) -> Result<Self, FrameError> {
         Self::from_sbs(&read_rgb(path)?, path)
@@ -266,6 +287,21 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("f.png") && e.contains("odd"), "{e}");
+    }
+
+    #[test]
+    fn raw_side_by_side_buffers_split_into_eyes() {
+        let mut sbs = RgbImage::from_pixel(6, 2, Rgb([1, 2, 3]));
+        sbs.put_pixel(3, 1, Rgb([200, 100, 50]));
+        // Rows padded to 20 bytes.
+        let mut bytes = vec![0u8; 20 * 2];
+        for y in 0..2 {
+            bytes[y * 20..y * 20 + 18].copy_from_slice(&sbs.as_raw()[y * 18..y * 18 + 18]);
+        }
+        let st = StereoImages::from_rgb8_sbs(3, 2, 20, &bytes).unwrap();
+        assert_eq!(st.to_sbs(), sbs);
+        assert!(StereoImages::from_rgb8_sbs(3, 2, 20, &bytes[..37]).is_none());
+        assert!(StereoImages::from_rgb8_sbs(3, 2, 17, &bytes).is_none());
     }
 
     #[test]

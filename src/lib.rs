@@ -10,6 +10,7 @@
 
 pub mod calibration;
 pub mod camera;
+pub mod capture;
 pub mod cli;
 pub mod color;
 pub mod config;
@@ -17,6 +18,7 @@ pub mod estimate;
 pub mod fitness;
 pub mod frame;
 pub mod ga;
+pub mod ipc;
 pub mod lookup;
 pub mod messages;
 pub mod model;

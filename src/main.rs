@@ -24,6 +24,10 @@ enum Command {
     Estimate(cli::estimate::EstimateArgs),
     /// Render a synthetic stereo frame of a photo card in a cluttered scene.
     Render(cli::render::RenderArgs),
+    /// Publish stereo frames on photopose/stereo_frames (synthetic camera).
+    Capture(cli::capture::CaptureArgs),
+    /// Track the model in the frame stream and publish poses on photopose/poses.
+    Estimator(cli::estimator::EstimatorArgs),
 }
 
 fn main() -> ExitCode {
@@ -36,6 +40,8 @@ fn main() -> ExitCode {
         Command::Model(a) => cli::model::run(a),
         Command::Estimate(a) => cli::estimate::run(a),
         Command::Render(a) => cli::render::run(a),
+        Command::Capture(a) => cli::capture::run(a),
+        Command::Estimator(a) => cli::estimator::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -5,8 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::calibration::Resolution;
-use crate::render::{self, ResolutionName, SceneSpec};
+use crate::render::{self, SceneSpec};
 
 /// Render a synthetic stereo frame of a photo card.
 #[derive(clap::Args, Debug)]
@@ -29,13 +28,7 @@ pub struct RenderArgs {
 pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let config = crate::config::Config::load(args.config.as_deref())?;
     let spec = SceneSpec::load(&args.scene)?;
-    let resolution = match spec.resolution {
-        ResolutionName::R2K => Resolution::R2K,
-        ResolutionName::FHD => Resolution::FHD,
-        ResolutionName::HD => Resolution::HD,
-        ResolutionName::VGA => Resolution::VGA,
-    };
-    let rig = config.calibration.rig(resolution)?;
+    let rig = config.calibration.rig(spec.resolution.into())?;
     let scene = spec.build(&config.left_from_hand)?;
     let frame = render::render(&rig, &config.left_from_hand, &scene);
 

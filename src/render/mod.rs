@@ -127,10 +127,17 @@ pub struct Scene {
 
 /// Renders the side-by-side frame through the calibrated, distorted cameras.
 pub fn render(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Scene) -> RgbImage {
-    let (w, h) = (rig.width as usize, rig.height as usize);
     let mut out = RgbImage::new(2 * rig.width, rig.height);
-    if w == 0 || h == 0 {
-        return out;
+    render_into(rig, left_from_hand, scene, &mut out);
+    out
+}
+
+/// [`render`] into an RGB8 buffer of `2·width × height` pixels (e.g. a loaned
+/// shared-memory sample); a buffer of another size is left alone.
+pub fn render_into(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Scene, out: &mut [u8]) {
+    let (w, h) = (rig.width as usize, rig.height as usize);
+    if w == 0 || h == 0 || out.len() != 2 * w * h * 3 {
+        return;
     }
     let card_tex = MipTexture::new(&scene.card.texture);
     let occ_tex = match &scene.occluder {
@@ -191,7 +198,6 @@ pub fn render(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Scene) -
             });
         }
     });
-    out
 }
 
 /// A plane given by its frame: `rot`/`origin` map camera coordinates into the plane's

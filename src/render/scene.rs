@@ -41,6 +41,18 @@ pub enum ResolutionName {
     VGA,
 }
 
+impl From<ResolutionName> for crate::calibration::Resolution {
+    fn from(r: ResolutionName) -> Self {
+        use crate::calibration::Resolution;
+        match r {
+            ResolutionName::R2K => Resolution::R2K,
+            ResolutionName::FHD => Resolution::FHD,
+            ResolutionName::HD => Resolution::HD,
+            ResolutionName::VGA => Resolution::VGA,
+        }
+    }
+}
+
 impl ResolutionName {
     /// Parses `2K`/`HD2K`, `FHD`/`HD1080`, `HD`/`HD720`, `VGA` (case-insensitive).
     pub fn parse(s: &str) -> Option<Self> {

@@ -1,0 +1,135 @@
+//! iceoryx2 plumbing shared by every process: one node per process, the three services
+//! of DESIGN §4 opened with the same settings by publishers and subscribers (so any
+//! start order works), and clean-up of what crashed processes left behind.
+
+use std::time::Duration;
+
+use anyhow::{anyhow, Context, Result};
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory;
+
+use crate::messages::{FrameHeader, PoseMsg, FRAMES_SERVICE};
+
+/// The shared-memory transport of this crate.
+pub type Transport = ipc::Service;
+/// Publishes side-by-side frames.
+pub type FramePublisher = Publisher<Transport, [u8], FrameHeader>;
+/// Receives side-by-side frames.
+pub type FrameSubscriber = Subscriber<Transport, [u8], FrameHeader>;
+/// Publishes poses (estimates or ground truth).
+pub type PosePublisher = Publisher<Transport, PoseMsg, ()>;
+/// Receives poses.
+pub type PoseSubscriber = Subscriber<Transport, PoseMsg, ()>;
+
+/// Frames a subscriber holds before the oldest is overwritten: a slow subscriber loses
+/// old frames, never memory, and never blocks the camera.
+const FRAME_BUFFER: usize = 2;
+/// Poses a subscriber holds (about a second of a 60 fps stream).
+const POSE_BUFFER: usize = 64;
+
+/// One process's iceoryx2 node.
+pub struct Ipc {
+    node: Node<Transport>,
+}
+
+impl Ipc {
+    /// Creates the node `name` and removes resources of dead photopose processes.
+    pub fn new(name: &str) -> Result<Self> {
+        // iceoryx2's own notices (e.g. "no config file loaded") are not the user's business.
+        set_log_level(LogLevel::Error);
+        let node_name = NodeName::new(name).map_err(|e| anyhow!("node name {name}: {e:?}"))?;
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .signal_handling_mode(SignalHandlingMode::HandleTerminationRequests)
+            .create::<Transport>()
+            .map_err(|e| anyhow!("cannot create the iceoryx2 node {name}: {e:?}"))?;
+        let cleaned = node.try_cleanup_dead_nodes();
+        tracing::debug!("iceoryx2 clean-up of dead nodes: {cleaned:?}");
+        Ok(Self { node })
+    }
+
+    /// Waits up to `timeout`; false once the process was asked to terminate (Ctrl-C, SIGTERM).
+    pub fn wait(&self, timeout: Duration) -> bool {
+        self.node.wait(timeout).is_ok()
+    }
+
+    fn service_name(name: &str) -> Result<ServiceName> {
+        ServiceName::new(name).map_err(|e| anyhow!("service name {name}: {e:?}"))
+    }
+
+    /// The frames service.
+    pub fn frames(&self) -> Result<PortFactory<Transport, [u8], FrameHeader>> {
+        self.node
+            .service_builder(&Self::service_name(FRAMES_SERVICE)?)
+            .publish_subscribe::<[u8]>()
+            .user_header::<FrameHeader>()
+            .subscriber_max_buffer_size(FRAME_BUFFER)
+            .history_size(0)
+            .enable_safe_overflow(true)
+            .max_publishers(2)
+            .max_subscribers(8)
+            .open_or_create()
+            .map_err(|e| anyhow!("cannot open {FRAMES_SERVICE}: {e:?}"))
+    }
+
+    /// A pose service ([`crate::messages::POSES_SERVICE`] or [`crate::messages::TRUTH_SERVICE`]).
+    pub fn poses(&self, service: &str) -> Result<PortFactory<Transport, PoseMsg, ()>> {
+        self.node
+            .service_builder(&Self::service_name(service)?)
+            .publish_subscribe::<PoseMsg>()
+            .subscriber_max_buffer_size(POSE_BUFFER)
+            .history_size(1)
+            .enable_safe_overflow(true)
+            .max_publishers(2)
+            .max_subscribers(16)
+            .open_or_create()
+            .map_err(|e| anyhow!("cannot open {service}: {e:?}"))
+    }
+
+    /// A frame publisher for side-by-side images of `bytes` bytes.
+    pub fn frame_publisher(&self, bytes: usize) -> Result<FramePublisher> {
+        self.frames()?
+            .publisher_builder()
+            .initial_max_slice_len(bytes)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| anyhow!("cannot create the frame publisher: {e:?}"))
+    }
+
+    pub fn frame_subscriber(&self) -> Result<FrameSubscriber> {
+        self.frames()?
+            .subscriber_builder()
+            .buffer_size(FRAME_BUFFER)
+            .create()
+            .map_err(|e| anyhow!("cannot subscribe to {FRAMES_SERVICE}: {e:?}"))
+    }
+
+    pub fn pose_publisher(&self, service: &str) -> Result<PosePublisher> {
+        self.poses(service)?
+            .publisher_builder()
+            .create()
+            .map_err(|e| anyhow!("cannot publish on {service}: {e:?}"))
+    }
+
+    pub fn pose_subscriber(&self, service: &str) -> Result<PoseSubscriber> {
+        self.poses(service)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| anyhow!("cannot subscribe to {service}: {e:?}"))
+    }
+}
+
+/// Sends one pose.
+pub fn send_pose(publisher: &PosePublisher, pose: PoseMsg) -> Result<()> {
+    let sample = publisher
+        .loan_uninit()
+        .map_err(|e| anyhow!("cannot loan a pose sample: {e:?}"))?;
+    sample
+        .write_payload(pose)
+        .send()
+        .map_err(|e| anyhow!("cannot send a pose: {e:?}"))
+        .context("pose")?;
+    Ok(())
+}
