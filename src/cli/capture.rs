@@ -11,7 +11,7 @@ use crate::capture::{pose_msg, Source, Trajectory};
 use crate::config::Config;
 use crate::ipc::{send_pose, Ipc};
 use crate::messages::{monotonic_ns, pixel_format, FrameHeader, TRUTH_SERVICE};
-use crate::render::{render_into, SceneSpec};
+use crate::render::{Renderer, SceneSpec};
 
 /// Publish stereo frames.
 #[derive(clap::Args, Debug)]
@@ -45,7 +45,8 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
     let mut scene = spec.build(&config.left_from_hand)?;
     let trajectory = Trajectory::with_peak_speed(scene.card.hand_from_model, args.speed);
     let (w, h) = (rig.width as usize, rig.height as usize);
-    let bytes = 2 * w * h * 3;
+    let renderer = Renderer::new(&rig, &config.left_from_hand, &scene);
+    let bytes = renderer.frame_len();
     let ipc = Ipc::new("photopose-capture")?;
     let frames = ipc.frame_publisher(bytes)?;
     let truth = ipc.pose_publisher(TRUTH_SERVICE)?;
@@ -75,7 +76,7 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
         let mut sample = frames
             .loan_slice(bytes)
             .map_err(|e| anyhow!("cannot loan a frame sample: {e:?}"))?;
-        render_into(&rig, &config.left_from_hand, &scene, sample.payload_mut());
+        renderer.render_into(&scene, sample.payload_mut());
         let capture_time_ns = monotonic_ns();
         *sample.user_header_mut() = FrameHeader {
             frame_id,

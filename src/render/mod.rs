@@ -136,6 +136,112 @@ pub fn render(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Scene) -
 /// shared-memory sample); a buffer of another size is left alone.
 pub fn render_into(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Scene, out: &mut [u8]) {
     let (w, h) = (rig.width as usize, rig.height as usize);
+    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let all = Region { cols: 0..w, rows: 0..h };
+    render_regions(rig, left_from_hand, scene, out, [all.clone(), all], threads);
+}
+
+/// Renders a moving card fast: the scene without card and occluder is rendered once,
+/// and each frame copies it and re-renders only the pixels around the card and
+/// occluder in each eye (on one thread, so a capture process leaves the other cores to
+/// the estimator). Pixel noise is then static outside those regions.
+pub struct Renderer {
+    rig: StereoRig,
+    left_from_hand: Isometry3<f64>,
+    background: Vec<u8>,
+}
+
+/// Extra pixels around a projected card or occluder (anti-aliased edges).
+const REGION_MARGIN_PX: f64 = 3.0;
+
+impl Renderer {
+    pub fn new(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Scene) -> Self {
+        let mut empty = scene.clone();
+        empty.card.size_mm = [0.0, 0.0];
+        empty.occluder = None;
+        let mut background = vec![0u8; 2 * rig.width as usize * rig.height as usize * 3];
+        render_into(rig, left_from_hand, &empty, &mut background);
+        Self {
+            rig: rig.clone(),
+            left_from_hand: *left_from_hand,
+            background,
+        }
+    }
+
+    /// Bytes of one side-by-side frame.
+    pub fn frame_len(&self) -> usize {
+        self.background.len()
+    }
+
+    /// Renders `scene` (the same scene as at construction, its card and occluder moved)
+    /// into `out` ([`Renderer::frame_len`] bytes).
+    pub fn render_into(&self, scene: &Scene, out: &mut [u8]) {
+        if out.len() != self.background.len() {
+            return;
+        }
+        out.copy_from_slice(&self.background);
+        let left_from_model = self.left_from_hand * scene.card.hand_from_model;
+        let [l, b] = scene.card.size_mm;
+        let mut rects = vec![(left_from_model, [l, b])];
+        if let Some(o) = &scene.occluder {
+            rects.push((o.left_from_occluder, o.size_mm));
+        }
+        let regions = [
+            self.region(&Isometry3::identity(), &self.rig.left, &rects),
+            self.region(&self.rig.right_from_left, &self.rig.right, &rects),
+        ];
+        render_regions(&self.rig, &self.left_from_hand, scene, out, regions, 1);
+    }
+
+    /// Pixels covered by `rects` (left-camera poses and sizes) in one eye; the whole
+    /// image when a corner is behind the camera.
+    fn region(&self, cam_from_left: &Isometry3<f64>, cam: &Intrinsics, rects: &[(Isometry3<f64>, [f64; 2])]) -> Region {
+        let (w, h) = (self.rig.width as f64, self.rig.height as f64);
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for (left_from_rect, [sx, sy]) in rects {
+            // Corners and edge midpoints: distortion bends the edges.
+            for (fx, fy) in [(-1, -1), (0, -1), (1, -1), (1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0)] {
+                let p = cam_from_left * left_from_rect * Point3::new(0.5 * sx * fx as f64, 0.5 * sy * fy as f64, 0.0);
+                let Some(q) = cam.project(&p) else {
+                    return Region {
+                        cols: 0..self.rig.width as usize,
+                        rows: 0..self.rig.height as usize,
+                    };
+                };
+                lo = [lo[0].min(q.x), lo[1].min(q.y)];
+                hi = [hi[0].max(q.x), hi[1].max(q.y)];
+            }
+        }
+        let span = |a: f64, b: f64, n: f64| {
+            let a = (a - REGION_MARGIN_PX).floor().clamp(0.0, n) as usize;
+            let b = (b + REGION_MARGIN_PX).ceil().clamp(0.0, n) as usize;
+            a..b.max(a)
+        };
+        Region {
+            cols: span(lo[0], hi[0], w),
+            rows: span(lo[1], hi[1], h),
+        }
+    }
+}
+
+/// A rectangle of one eye's pixels.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Region {
+    pub cols: std::ops::Range<usize>,
+    pub rows: std::ops::Range<usize>,
+}
+
+/// Renders only `regions` (left, right) of the side-by-side frame in `out`, on up to
+/// `threads` threads; other pixels are left as they are.
+fn render_regions(
+    rig: &StereoRig,
+    left_from_hand: &Isometry3<f64>,
+    scene: &Scene,
+    out: &mut [u8],
+    regions: [Region; 2],
+    threads: usize,
+) {
+    let (w, h) = (rig.width as usize, rig.height as usize);
     if w == 0 || h == 0 || out.len() != 2 * w * h * 3 {
         return;
     }
@@ -176,10 +282,7 @@ pub fn render_into(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Sce
         0.0
     };
 
-    let threads = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-        .clamp(1, 64);
+    let threads = threads.clamp(1, 64);
     let band_rows = h.div_ceil(threads * 4).max(1);
     let row_bytes = 2 * w * 3;
     let work = Mutex::new(out.chunks_mut(row_bytes * band_rows).enumerate());
@@ -193,7 +296,7 @@ pub fn render_into(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Sce
                 let Some((band, chunk)) = next else { break };
                 let y0 = band * band_rows;
                 for (e, eye) in eyes.iter().enumerate() {
-                    eye.render_band(chunk, y0, w, e, sigma, scene.seed);
+                    eye.render_band(chunk, y0, w, e, &regions[e], sigma, scene.seed);
                 }
             });
         }
@@ -425,10 +528,11 @@ impl<'a> Eye<'a> {
         best.map(|(k, _, x, y)| (k, x, y))
     }
 
-    /// Corner rays, their surfaces and hit points for corner row `jc` (`v = jc − ½`).
-    fn corner_row(&self, jc: usize, row: &mut [Corner]) {
+    /// Corner rays, their surfaces and hit points for corner row `jc` (`v = jc − ½`),
+    /// columns `i0..i0 + row.len()`.
+    fn corner_row(&self, jc: usize, row: &mut [Corner], i0: usize) {
         for (i, c) in row.iter_mut().enumerate() {
-            let [x, y] = self.rays.corner(i, jc);
+            let [x, y] = self.rays.corner(i0 + i, jc);
             c.ray = Vector3::new(x, y, 1.0);
             (c.id, c.xy) = match self.trace(&c.ray) {
                 Some((k, x, y)) => (k as u8, [x, y]),
@@ -437,10 +541,15 @@ impl<'a> Eye<'a> {
         }
     }
 
-    /// Renders rows `y0..` of this eye into a side-by-side band.
-    fn render_band(&self, chunk: &mut [u8], y0: usize, w: usize, eye: usize, sigma: f32, seed: u64) {
+    #[allow(clippy::too_many_arguments)]
+    fn render_band(&self, chunk: &mut [u8], y0: usize, w: usize, eye: usize, region: &Region, sigma: f32, seed: u64) {
         let row_bytes = 2 * w * 3;
         let rows = chunk.len() / row_bytes;
+        let (c0, c1) = (region.cols.start.min(w), region.cols.end.min(w));
+        let (r0, r1) = (region.rows.start.max(y0), region.rows.end.min(y0 + rows));
+        if c0 >= c1 || r0 >= r1 {
+            return;
+        }
         let blank = Corner {
             ray: Vector3::zeros(),
             id: MISS,
@@ -448,13 +557,13 @@ impl<'a> Eye<'a> {
         };
         let mut top = vec![blank; w + 1];
         let mut bot = vec![blank; w + 1];
-        self.corner_row(y0, &mut top);
-        for r in 0..rows {
-            let j = y0 + r;
-            self.corner_row(j + 1, &mut bot);
+        self.corner_row(r0, &mut top[c0..=c1], c0);
+        for j in r0..r1 {
+            let r = j - y0;
+            self.corner_row(j + 1, &mut bot[c0..=c1], c0);
             let row = &mut chunk[r * row_bytes + eye * w * 3..r * row_bytes + (eye + 1) * w * 3];
             let mut noise = Noise::new(seed, eye, j, sigma);
-            for i in 0..w {
+            for i in c0..c1 {
                 let q = [&top[i], &top[i + 1], &bot[i], &bot[i + 1]];
                 let corners = [q[0].ray, q[1].ray, q[2].ray, q[3].ray];
                 let id = q[0].id;

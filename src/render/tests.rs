@@ -366,3 +366,55 @@ fn render_hd_timing() {
     let next = t.elapsed().as_secs_f64() * 1e3 / n as f64;
     println!("HD frame: first {first:.1} ms (ray tables), then {next:.1} ms");
 }
+
+#[test]
+fn incremental_frames_equal_full_renders() {
+    let rig = rig(true);
+    let lfm = pose([-20.0, 10.0, 600.0], [0.3, -0.2, 0.4]);
+    let mut scene = scene_with(lfm, RED, [120.0, 90.0]);
+    scene.card.texture = RgbImage::from_fn(40, 30, |x, y| Rgb([6 * x as u8, 8 * y as u8, 90]));
+    scene.background = Background::collage(&[], 5, 1500.0);
+    scene.occluder = Occluder::covering(&lfm, [120.0, 90.0], 0.2, OccluderFill::Solid([9, 200, 9]), 3);
+    let renderer = Renderer::new(&rig, &left_from_hand(), &scene);
+    let mut out = vec![0u8; renderer.frame_len()];
+    for step in 0..3 {
+        let moved = pose(
+            [-20.0 + 25.0 * step as f64, 10.0, 600.0 - 30.0 * step as f64],
+            [0.3, -0.2, 0.4 + 0.2 * step as f64],
+        );
+        scene.card.hand_from_model = left_from_hand().inverse() * moved;
+        renderer.render_into(&scene, &mut out);
+        let full = render(&rig, &left_from_hand(), &scene);
+        let differ = out.iter().zip(full.as_raw()).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "step {step}: {differ} bytes differ from a full render");
+    }
+}
+
+/// `cargo test --release render_hd_timing -- --ignored --nocapture`
+#[test]
+#[ignore]
+fn incremental_hd_timing() {
+    let rig = {
+        let mut r = rig(true);
+        r.width = 1280;
+        r.height = 720;
+        r.left = lens(true, 640.0);
+        r.right = r.left;
+        r
+    };
+    let lfm = pose([0.0, 0.0, 650.0], [0.2, 0.3, 0.1]);
+    let mut scene = scene_with(lfm, RED, [180.0, 160.0]);
+    scene.background = Background::collage(&[], 7, 1500.0);
+    let renderer = Renderer::new(&rig, &Isometry3::identity(), &scene);
+    let mut out = vec![0u8; renderer.frame_len()];
+    let t = std::time::Instant::now();
+    let n = 30;
+    for i in 0..n {
+        scene.card.hand_from_model = left_from_hand().inverse() * pose([i as f64, 0.0, 650.0], [0.2, 0.3, 0.1]);
+        renderer.render_into(&scene, &mut out);
+    }
+    println!(
+        "incremental HD frame: {:.1} ms",
+        t.elapsed().as_secs_f64() * 1e3 / n as f64
+    );
+}
