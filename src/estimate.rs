@@ -5,7 +5,7 @@ use serde::Serialize;
 
 use crate::calibration::CalibrationError;
 use crate::config::{Config, Mode};
-use crate::fitness::{OuterRule, Scorer};
+use crate::fitness::{OuterRule, PointSet, Scorer};
 use crate::frame::{FramePyramid, StereoImages};
 use crate::ga::{self, Bounds, Outcome, Problem};
 use crate::lookup::LevelLookup;
@@ -17,6 +17,8 @@ pub struct Prepared {
     pub scorer: Scorer,
     /// The frame's lookup images at every pyramid level, level 0 at full resolution.
     pub levels: Vec<LevelLookup>,
+    /// The model's points on each level.
+    pub points: Vec<PointSet>,
     pub bounds: Bounds,
     pub mode: Mode,
 }
@@ -28,45 +30,45 @@ impl Prepared {
         let (w, h) = images.eye_size();
         let rig = config.calibration.rig_for_image(w, h)?;
         let mode = config.ga.mode;
-        let r = &config.robust;
-        let (rule, min_cos, sat_tol, levels) = match mode {
-            Mode::Paper => (OuterRule::RawHue, 0.0, 255, 1),
-            Mode::Robust => (
-                OuterRule::ColorClass,
-                r.min_facing_cos,
-                r.sat_tolerance,
-                r.pyramid_levels,
-            ),
+        let levels = match mode {
+            Mode::Paper => 1,
+            Mode::Robust => config.robust.pyramid_levels,
         };
-        let mut scorer = Scorer::new(model, config.fitness, rule, min_cos, sat_tol, config.left_from_hand);
-        if mode == Mode::Robust {
-            scorer.min_extent_px = r.min_extent_px;
-            scorer.stereo_weight = r.stereo_weight;
-        }
+        let scorer = scorer_for(model, config);
         let start = std::time::Instant::now();
         let pyramid = FramePyramid::build(images, &rig, levels, &config.fitness.classes());
         let levels = pyramid.levels.iter().map(|l| scorer.lookup(l)).collect();
         tracing::debug!("frame preparation: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
         let bounds = Bounds::new(&config.search, model, mode == Mode::Robust);
+        let points = ga::level_points(model, &scorer, pyramid.levels.len(), mode == Mode::Robust);
         Ok(Self {
             scorer,
             levels,
+            points,
             bounds,
             mode,
         })
     }
 
     /// The search problem over this frame.
-    pub fn problem<'a>(&'a self, model: &PhotoModel, config: &Config) -> Problem<'a> {
-        Problem::new(
-            &self.scorer,
-            &self.levels,
-            model,
-            self.bounds,
-            config.ga.threads,
-            self.mode == Mode::Robust,
-        )
+    pub fn problem<'a>(&'a self, config: &Config) -> Problem<'a> {
+        Problem::new(&self.scorer, &self.levels, &self.points, self.bounds, config.ga.threads)
     }
+}
+
+/// The fitness of the configured mode for `model`.
+pub fn scorer_for(model: &PhotoModel, config: &Config) -> Scorer {
+    let r = &config.robust;
+    let (rule, min_cos, sat_tol) = match config.ga.mode {
+        Mode::Paper => (OuterRule::RawHue, 0.0, 255),
+        Mode::Robust => (OuterRule::ColorClass, r.min_facing_cos, r.sat_tolerance),
+    };
+    let mut scorer = Scorer::new(model, config.fitness, rule, min_cos, sat_tol, config.left_from_hand);
+    if config.ga.mode == Mode::Robust {
+        scorer.min_extent_px = r.min_extent_px;
+        scorer.stereo_weight = r.stereo_weight;
+    }
+    scorer
 }
 
 /// Runs the configured GA for `generations` generations from `seed`.
@@ -79,19 +81,18 @@ pub fn run(
     progress: &mut dyn FnMut(usize),
 ) -> Result<Outcome, CalibrationError> {
     let prepared = Prepared::new(model, images, config)?;
-    Ok(search(&prepared, model, config, generations, seed, progress))
+    Ok(search(&prepared, config, generations, seed, progress))
 }
 
 /// Runs the configured GA on an already prepared frame.
 pub fn search(
     prepared: &Prepared,
-    model: &PhotoModel,
     config: &Config,
     generations: usize,
     seed: u64,
     progress: &mut dyn FnMut(usize),
 ) -> Outcome {
-    let problem = prepared.problem(model, config);
+    let problem = prepared.problem(config);
     match prepared.mode {
         Mode::Paper => ga::paper::run(&problem, &config.ga, generations, seed, progress),
         Mode::Robust => ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress),

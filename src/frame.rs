@@ -133,6 +133,13 @@ impl StereoImages {
     }
 }
 
+/// A rectangle of one eye's pixels.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Region {
+    pub cols: std::ops::Range<usize>,
+    pub rows: std::ops::Range<usize>,
+}
+
 /// The colour data of one pixel, interleaved so one memory access serves a sample point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct PixelColor {

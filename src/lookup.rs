@@ -6,7 +6,8 @@
 use rayon::prelude::*;
 
 use crate::camera::StereoRig;
-use crate::frame::{ColorPlane, FrameLevel, PixelColor};
+use crate::color::{rgb_to_hsv, ColorClasses};
+use crate::frame::{ColorPlane, FrameLevel, PixelColor, Region};
 
 /// Colour code of a texel outside the image: it matches no model colour and, for outer
 /// points, counts as target (a mismatch), as points outside an image do.
@@ -64,6 +65,70 @@ impl LookupImage {
             width: w,
             height: h,
             px,
+        }
+    }
+}
+
+/// A side-by-side RGB8 frame as it arrives (e.g. a shared-memory sample): `height` rows
+/// of `row_stride` bytes, eyes of `width` pixels.
+#[derive(Debug, Clone, Copy)]
+pub struct SbsBytes<'a> {
+    pub bytes: &'a [u8],
+    pub width: usize,
+    pub height: usize,
+    pub row_stride: usize,
+}
+
+impl SbsBytes<'_> {
+    /// True when `bytes` holds the whole frame.
+    pub fn is_complete(&self) -> bool {
+        let row = 2 * self.width * 3;
+        self.width > 0
+            && self.height > 0
+            && self.row_stride >= row
+            && self.bytes.len() >= self.row_stride * (self.height - 1) + row
+    }
+}
+
+impl LookupImage {
+    /// An image of outside texels for `width × height` pixels.
+    pub fn outside(width: usize, height: usize) -> Self {
+        let (w, h) = (width + 2, height + 2);
+        Self {
+            width: w,
+            height: h,
+            px: vec![OUTSIDE_TEXEL; w * h],
+        }
+    }
+
+    /// Refills from eye `eye` (0 left, 1 right) of `frame`, converting only the pixels in
+    /// `roi`; every other texel reads "outside". Allocates only when the size changes.
+    pub fn refill(
+        &mut self,
+        frame: &SbsBytes,
+        eye: usize,
+        roi: &Region,
+        classes: &ColorClasses,
+        target: impl Fn(&PixelColor) -> bool,
+    ) {
+        if self.width != frame.width + 2 || self.height != frame.height + 2 {
+            *self = Self::outside(frame.width, frame.height);
+        } else {
+            self.px.fill(OUTSIDE_TEXEL);
+        }
+        let (x0, x1) = (roi.cols.start.min(frame.width), roi.cols.end.min(frame.width));
+        for y in roi.rows.start..roi.rows.end.min(frame.height) {
+            let src = &frame.bytes[y * frame.row_stride + (eye * frame.width + x0) * 3..];
+            let dst = &mut self.px[(y + 1) * self.width + 1 + x0..];
+            for (t, p) in dst[..x1.saturating_sub(x0)].iter_mut().zip(src.chunks_exact(3)) {
+                let (hue, sat, v) = rgb_to_hsv(p[0], p[1], p[2]);
+                let c = PixelColor {
+                    code: classes.code(hue, sat, v),
+                    sat,
+                    hue,
+                };
+                *t = texel(c.code, c.sat, target(&c));
+            }
         }
     }
 }

@@ -7,8 +7,12 @@
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
+use nalgebra::{Isometry3, Point3};
+
+use crate::camera::StereoRig;
 use crate::config::{Config, GaSettings, RobustSettings, TrackingSettings};
 use crate::fitness::Fitness;
+use crate::frame::Region;
 use crate::ga::robust::{mutate, Population};
 use crate::ga::{Genes, Problem, GENES};
 use crate::messages::status;
@@ -62,6 +66,16 @@ impl Tracker {
     /// True until the first acquisition, and after the object was lost.
     pub fn needs_acquisition(&self) -> bool {
         self.pop.genes.is_empty() || self.searching > self.settings.lost_after_frames
+    }
+
+    /// The genes expected on the next frame (last best moved by the estimated velocity);
+    /// `None` while the object has to be acquired.
+    pub fn prediction(&self) -> Option<Genes> {
+        if self.needs_acquisition() {
+            return None;
+        }
+        self.last_best
+            .map(|b| std::array::from_fn(|i| (b[i] + self.velocity[i]).clamp(0.0, 1.0)))
     }
 
     /// Processes one frame.
@@ -152,4 +166,43 @@ impl Tracker {
             problem.evaluate_batch(level, &self.pop.genes[keep..], &mut self.pop.fit[keep..]);
         }
     }
+}
+
+/// Pixels of each eye (left, right) worth preparing for a model at `pose`: its
+/// projected box, grown on every side by `grow` times its size and at least `min_px`
+/// (the motion until the next frame and the population's spread). The whole image where
+/// the box is behind a camera.
+pub fn search_windows(
+    rig: &StereoRig,
+    left_from_hand: &Isometry3<f64>,
+    pose: &PoseSize,
+    box_px: [f64; 2],
+    grow: f64,
+    min_px: f64,
+) -> [Region; 2] {
+    let left_from_model = left_from_hand * pose.hand_from_model();
+    let [l, b] = pose.size_mm(box_px[0], box_px[1]);
+    let (w, h) = (rig.width as usize, rig.height as usize);
+    let eyes = [(Isometry3::identity(), &rig.left), (rig.right_from_left, &rig.right)];
+    eyes.map(|(cam_from_left, cam)| {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for (fx, fy) in [(-1, -1), (0, -1), (1, -1), (1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0)] {
+            let p = cam_from_left * left_from_model * Point3::new(0.5 * l * fx as f64, 0.5 * b * fy as f64, 0.0);
+            let Some(q) = cam.project(&p) else {
+                return Region { cols: 0..w, rows: 0..h };
+            };
+            lo = [lo[0].min(q.x), lo[1].min(q.y)];
+            hi = [hi[0].max(q.x), hi[1].max(q.y)];
+        }
+        let pad = (grow * (hi[0] - lo[0]).max(hi[1] - lo[1])).max(min_px);
+        let span = |a: f64, b: f64, n: usize| {
+            let a = (a - pad).floor().clamp(0.0, n as f64) as usize;
+            let b = (b + pad).ceil().clamp(0.0, n as f64) as usize;
+            a..b.max(a)
+        };
+        Region {
+            cols: span(lo[0], hi[0], w),
+            rows: span(lo[1], hi[1], h),
+        }
+    })
 }

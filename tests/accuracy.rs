@@ -129,7 +129,7 @@ fn diagnose() {
         }
         let r = scenes::render(spec, 100 + i as u64);
         let prepared = Prepared::new(&r.model, &r.images, &r.config).unwrap();
-        let problem = prepared.problem(&r.model, &r.config);
+        let problem = prepared.problem(&r.config);
         let truth = PoseSize::from_pose(&r.hand_from_model, spec.size_mm, r.model.l_p, r.model.b_p);
         let tg = problem.bounds.encode(&truth);
         {
@@ -216,7 +216,7 @@ fn ground_truth_is_the_robust_fitness_peak() {
     for (i, spec) in clean.iter().enumerate() {
         let r = scenes::render(spec, 100 + i as u64);
         let prepared = Prepared::new(&r.model, &r.images, &r.config).unwrap();
-        let problem = prepared.problem(&r.model, &r.config);
+        let problem = prepared.problem(&r.config);
         let truth = PoseSize::from_pose(&r.hand_from_model, spec.size_mm, r.model.l_p, r.model.b_p);
         let f_truth = problem.evaluate(0, &problem.bounds.encode(&truth)).f;
         let mut rng = rand::rngs::StdRng::seed_from_u64(i as u64);

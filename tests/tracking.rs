@@ -54,7 +54,7 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
         let sbs = render::render(&rig, &r.config.left_from_hand, &scene);
         let images = StereoImages::from_sbs(&sbs, std::path::Path::new("frame")).expect("even width");
         let prepared = Prepared::new(&r.model, &images, &r.config).expect("HD frame");
-        let problem = prepared.problem(&r.model, &r.config);
+        let problem = prepared.problem(&r.config);
         let est = tracker.step(&problem);
         let err = (est.best.position - scene.card.hand_from_model.translation.vector).norm();
         if i == 0 {

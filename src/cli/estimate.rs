@@ -57,7 +57,7 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
     let bar = super::progress_bar(generations as u64, "generations");
     let start = Instant::now();
     let prepared = Prepared::new(&model, &images, &config)?;
-    let outcome = estimate::search(&prepared, &model, &config, generations, seed, &mut |g| {
+    let outcome = estimate::search(&prepared, &config, generations, seed, &mut |g| {
         bar.set_position(g as u64)
     });
     bar.finish_and_clear();

@@ -9,10 +9,11 @@
 use nalgebra::{Isometry3, Matrix3, Point2};
 
 use crate::camera::{Intrinsics, StereoRig};
+use crate::color::ColorClasses;
 use crate::color::{hue_distance, is_chromatic};
 use crate::config::FitnessParams;
-use crate::frame::{FrameLevel, PixelColor};
-use crate::lookup::LevelLookup;
+use crate::frame::{FrameLevel, PixelColor, Region};
+use crate::lookup::{LevelLookup, SbsBytes};
 
 mod kernel;
 use crate::model::PhotoModel;
@@ -154,6 +155,14 @@ impl Scorer {
     /// One pyramid level's lookup images for this scorer (once per frame).
     pub fn lookup(&self, level: &FrameLevel) -> LevelLookup {
         LevelLookup::new(level, |c| self.outer_is_target(c))
+    }
+
+    /// Refills full-resolution lookup images from a frame as it arrived, converting only
+    /// the pixels of each eye's region of interest (tracking).
+    pub fn refill(&self, lookup: &mut LevelLookup, frame: &SbsBytes, rois: &[Region; 2], classes: &ColorClasses) {
+        let target = |c: &PixelColor| self.outer_is_target(c);
+        lookup.left.refill(frame, 0, &rois[0], classes, target);
+        lookup.right.refill(frame, 1, &rois[1], classes, target);
     }
 
     /// Projections of the candidate into the left and right images, `None` when

@@ -105,31 +105,25 @@ pub struct Problem<'a> {
     /// Level 0 at full resolution.
     pub levels: &'a [LevelLookup],
     /// Points used on each pyramid level (coarser levels use a sub-grid).
-    pub points: Vec<PointSet>,
+    pub points: &'a [PointSet],
     pub bounds: Bounds,
     pub workers: Workers,
 }
 
 impl<'a> Problem<'a> {
-    /// With `thin`, coarse level `l` uses the model as a thumbnail: one point per `2^l` × `2^l` block.
     pub fn new(
         scorer: &'a Scorer,
         levels: &'a [LevelLookup],
-        model: &PhotoModel,
+        points: &'a [PointSet],
         bounds: Bounds,
         threads: usize,
-        thin: bool,
     ) -> Self {
-        let points = (0..levels.len())
-            .map(|l| PointSet::from_model(model, &scorer.params, if thin { 1 << l } else { 1 }))
-            .collect();
-        let workers = Workers::new(threads);
         Self {
             scorer,
             levels,
             points,
             bounds,
-            workers,
+            workers: Workers::new(threads),
         }
     }
 
@@ -149,6 +143,14 @@ impl<'a> Problem<'a> {
     pub fn par_fill<T: Sync, R: Send>(&self, items: &[T], out: &mut [R], f: impl Fn(&T) -> R + Sync) {
         self.workers.fill(items, out, f)
     }
+}
+
+/// The model's points for `levels` pyramid levels; with `thin`, coarse level `l` uses
+/// the model as a thumbnail: one point per `2^l` × `2^l` block.
+pub fn level_points(model: &PhotoModel, scorer: &Scorer, levels: usize, thin: bool) -> Vec<PointSet> {
+    (0..levels)
+        .map(|l| PointSet::from_model(model, &scorer.params, if thin { 1 << l } else { 1 }))
+        .collect()
 }
 
 /// The best individual at one generation (for the paper's Table 2).

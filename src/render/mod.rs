@@ -29,6 +29,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use crate::camera::{Intrinsics, StereoRig};
+pub use crate::frame::Region;
 use rays::RayTable;
 use texture::{MipTexture, Wrap};
 
@@ -222,13 +223,6 @@ impl Renderer {
             rows: span(lo[1], hi[1], h),
         }
     }
-}
-
-/// A rectangle of one eye's pixels.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Region {
-    pub cols: std::ops::Range<usize>,
-    pub rows: std::ops::Range<usize>,
 }
 
 /// Renders only `regions` (left, right) of the side-by-side frame in `out`, on up to
