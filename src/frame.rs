@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use image::{imageops, RgbImage};
 use rayon::prelude::*;
 
-use crate::camera::StereoRig;
+use nalgebra::{Isometry3, Point3};
+
+use crate::camera::{Intrinsics, StereoRig};
 use crate::color::{rgb_to_hsv, ColorClasses};
 
 /// A problem reading a frame.
@@ -138,6 +140,51 @@ impl StereoImages {
 pub struct Region {
     pub cols: std::ops::Range<usize>,
     pub rows: std::ops::Range<usize>,
+}
+
+impl Region {
+    /// The whole of a `width × height` image.
+    pub fn all(width: usize, height: usize) -> Self {
+        Region {
+            cols: 0..width,
+            rows: 0..height,
+        }
+    }
+
+    /// Pixels of a `width × height` image covered by flat rectangles (camera-frame poses,
+    /// centred, sizes in mm) seen through `cam`, grown on every side by `pad(extent)`
+    /// pixels, `extent` being the larger side of their projected box. The whole image
+    /// when a rectangle reaches behind the camera.
+    pub fn covering(
+        cam: &Intrinsics,
+        cam_from_rects: impl IntoIterator<Item = (Isometry3<f64>, [f64; 2])>,
+        width: usize,
+        height: usize,
+        pad: impl Fn(f64) -> f64,
+    ) -> Self {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for (cam_from_rect, [sx, sy]) in cam_from_rects {
+            // Corners and edge midpoints: distortion bends the edges.
+            for (fx, fy) in [(-1, -1), (0, -1), (1, -1), (1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0)] {
+                let p = cam_from_rect * Point3::new(0.5 * sx * fx as f64, 0.5 * sy * fy as f64, 0.0);
+                let Some(q) = cam.project(&p) else {
+                    return Self::all(width, height);
+                };
+                lo = [lo[0].min(q.x), lo[1].min(q.y)];
+                hi = [hi[0].max(q.x), hi[1].max(q.y)];
+            }
+        }
+        let pad = pad((hi[0] - lo[0]).max(hi[1] - lo[1]));
+        let span = |a: f64, b: f64, n: usize| {
+            let a = (a - pad).floor().clamp(0.0, n as f64) as usize;
+            let b = (b + pad).ceil().clamp(0.0, n as f64) as usize;
+            a..b.max(a)
+        };
+        Region {
+            cols: span(lo[0], hi[0], width),
+            rows: span(lo[1], hi[1], height),
+        }
+    }
 }
 
 /// The colour data of one pixel, interleaved so one memory access serves a sample point.

@@ -7,7 +7,7 @@
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use nalgebra::{Isometry3, Point3};
+use nalgebra::Isometry3;
 
 use crate::camera::StereoRig;
 use crate::config::{Config, GaSettings, RobustSettings, TrackingSettings};
@@ -181,28 +181,11 @@ pub fn search_windows(
     min_px: f64,
 ) -> [Region; 2] {
     let left_from_model = left_from_hand * pose.hand_from_model();
-    let [l, b] = pose.size_mm(box_px[0], box_px[1]);
+    let size = pose.size_mm(box_px[0], box_px[1]);
     let (w, h) = (rig.width as usize, rig.height as usize);
-    let eyes = [(Isometry3::identity(), &rig.left), (rig.right_from_left, &rig.right)];
-    eyes.map(|(cam_from_left, cam)| {
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for (fx, fy) in [(-1, -1), (0, -1), (1, -1), (1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0)] {
-            let p = cam_from_left * left_from_model * Point3::new(0.5 * l * fx as f64, 0.5 * b * fy as f64, 0.0);
-            let Some(q) = cam.project(&p) else {
-                return Region { cols: 0..w, rows: 0..h };
-            };
-            lo = [lo[0].min(q.x), lo[1].min(q.y)];
-            hi = [hi[0].max(q.x), hi[1].max(q.y)];
-        }
-        let pad = (grow * (hi[0] - lo[0]).max(hi[1] - lo[1])).max(min_px);
-        let span = |a: f64, b: f64, n: usize| {
-            let a = (a - pad).floor().clamp(0.0, n as f64) as usize;
-            let b = (b + pad).ceil().clamp(0.0, n as f64) as usize;
-            a..b.max(a)
-        };
-        Region {
-            cols: span(lo[0], hi[0], w),
-            rows: span(lo[1], hi[1], h),
-        }
-    })
+    let pad = |extent: f64| (grow * extent).max(min_px);
+    [
+        Region::covering(&rig.left, [(left_from_model, size)], w, h, pad),
+        Region::covering(&rig.right, [(rig.right_from_left * left_from_model, size)], w, h, pad),
+    ]
 }

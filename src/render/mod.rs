@@ -138,8 +138,14 @@ pub fn render(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Scene) -
 pub fn render_into(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Scene, out: &mut [u8]) {
     let (w, h) = (rig.width as usize, rig.height as usize);
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
-    let all = Region { cols: 0..w, rows: 0..h };
-    render_regions(rig, left_from_hand, scene, out, [all.clone(), all], threads);
+    render_regions(
+        rig,
+        left_from_hand,
+        scene,
+        out,
+        [Region::all(w, h), Region::all(w, h)],
+        threads,
+    );
 }
 
 /// Renders a moving card fast: the scene without card and occluder is rendered once,
@@ -187,41 +193,18 @@ impl Renderer {
         if let Some(o) = &scene.occluder {
             rects.push((o.left_from_occluder, o.size_mm));
         }
+        let (w, h) = (self.rig.width as usize, self.rig.height as usize);
+        let eye = |cam_from_left: Isometry3<f64>, cam: &Intrinsics| {
+            let seen = rects
+                .iter()
+                .map(|(left_from_rect, size)| (cam_from_left * left_from_rect, *size));
+            Region::covering(cam, seen, w, h, |_| REGION_MARGIN_PX)
+        };
         let regions = [
-            self.region(&Isometry3::identity(), &self.rig.left, &rects),
-            self.region(&self.rig.right_from_left, &self.rig.right, &rects),
+            eye(Isometry3::identity(), &self.rig.left),
+            eye(self.rig.right_from_left, &self.rig.right),
         ];
         render_regions(&self.rig, &self.left_from_hand, scene, out, regions, 1);
-    }
-
-    /// Pixels covered by `rects` (left-camera poses and sizes) in one eye; the whole
-    /// image when a corner is behind the camera.
-    fn region(&self, cam_from_left: &Isometry3<f64>, cam: &Intrinsics, rects: &[(Isometry3<f64>, [f64; 2])]) -> Region {
-        let (w, h) = (self.rig.width as f64, self.rig.height as f64);
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for (left_from_rect, [sx, sy]) in rects {
-            // Corners and edge midpoints: distortion bends the edges.
-            for (fx, fy) in [(-1, -1), (0, -1), (1, -1), (1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0)] {
-                let p = cam_from_left * left_from_rect * Point3::new(0.5 * sx * fx as f64, 0.5 * sy * fy as f64, 0.0);
-                let Some(q) = cam.project(&p) else {
-                    return Region {
-                        cols: 0..self.rig.width as usize,
-                        rows: 0..self.rig.height as usize,
-                    };
-                };
-                lo = [lo[0].min(q.x), lo[1].min(q.y)];
-                hi = [hi[0].max(q.x), hi[1].max(q.y)];
-            }
-        }
-        let span = |a: f64, b: f64, n: f64| {
-            let a = (a - REGION_MARGIN_PX).floor().clamp(0.0, n) as usize;
-            let b = (b + REGION_MARGIN_PX).ceil().clamp(0.0, n) as usize;
-            a..b.max(a)
-        };
-        Region {
-            cols: span(lo[0], hi[0], w),
-            rows: span(lo[1], hi[1], h),
-        }
     }
 }
 
