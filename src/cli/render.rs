@@ -13,7 +13,7 @@ pub struct RenderArgs {
     /// Scene description (TOML).
     #[arg(long, value_name = "SCENE.toml")]
     pub scene: PathBuf,
-    /// Output side-by-side frame (PNG).
+    /// Output side-by-side frame: PNG, or JPEG when the name ends in `.jpg`/`.jpeg`.
     #[arg(short, long, value_name = "FRAME.png")]
     pub output: PathBuf,
     /// Also write the true pose and size (hand frame) as JSON.
@@ -33,8 +33,12 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let frame = render::render(&rig, &config.left_from_hand, &scene);
 
     create_parent(&args.output)?;
+    let format = match image::ImageFormat::from_path(&args.output) {
+        Ok(image::ImageFormat::Jpeg) => image::ImageFormat::Jpeg,
+        _ => image::ImageFormat::Png,
+    };
     frame
-        .save_with_format(&args.output, image::ImageFormat::Png)
+        .save_with_format(&args.output, format)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     let mut written = format!(
         "wrote {} ({}×{}, {})",
