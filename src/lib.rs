@@ -23,6 +23,7 @@ pub mod lookup;
 pub mod messages;
 pub mod model;
 pub mod overlay;
+pub mod plot;
 pub mod pose;
 pub mod render;
 pub mod tracking;
