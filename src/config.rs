@@ -55,20 +55,14 @@ struct RawConfig {
     fitness: FitnessParams,
     robust: RobustSettings,
     tracking: TrackingSettings,
+    controller: RawController,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Deserialize, Default)]
 #[serde(deny_unknown_fields, default)]
 struct RawCamera {
-    calibration: PathBuf,
-}
-
-impl Default for RawCamera {
-    fn default() -> Self {
-        Self {
-            calibration: PathBuf::from(EXAMPLE_CALIBRATION_NAME),
-        }
-    }
+    /// `None`: the built-in example calibration.
+    calibration: Option<PathBuf>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -216,8 +210,9 @@ pub struct TrackingSettings {
     pub population: usize,
     /// Generations run on each frame.
     pub generations_per_frame: usize,
-    /// Pyramid level the tracking GA scores on (0 = full resolution).
-    pub level: usize,
+    /// 1: every model point; 2: one point per 2×2 block of the grid, with the block's mean
+    /// colour (a quarter of the work).
+    pub point_stride: usize,
     /// Gaussian mutation step, in normalised gene units.
     pub sigma: f64,
     /// Below this `F` the object counts as not tracked (status `searching`).
@@ -235,7 +230,7 @@ impl Default for TrackingSettings {
         Self {
             population: 40,
             generations_per_frame: 6,
-            level: 0,
+            point_stride: 2,
             sigma: 0.003,
             min_fitness: 1.0,
             immigrants: 0.2,
@@ -321,6 +316,49 @@ impl Default for FitnessParams {
     }
 }
 
+/// `[controller]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawController {
+    rate_hz: f64,
+    deadline_ms: f64,
+    gain: f64,
+    max_speed_mm_s: f64,
+    max_turn_deg_s: f64,
+    grasp_position_mm: [f64; 3],
+    grasp_rotation_wxyz: [f64; 4],
+}
+
+impl Default for RawController {
+    fn default() -> Self {
+        Self {
+            rate_hz: 200.0,
+            deadline_ms: 100.0,
+            gain: 1.5,
+            max_speed_mm_s: 150.0,
+            max_turn_deg_s: 30.0,
+            grasp_position_mm: [0.0, 0.0, 150.0],
+            grasp_rotation_wxyz: [1.0, 0.0, 0.0, 0.0],
+        }
+    }
+}
+
+/// `[controller]`: the example visual-servo client (`photopose controller`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControllerSettings {
+    /// Commands per second.
+    pub rate_hz: f64,
+    /// A pose whose frame was captured longer ago than this is stale.
+    pub deadline: std::time::Duration,
+    /// λ of the servo law, 1/s.
+    pub gain: f64,
+    /// Speed limits, mm/s and rad/s.
+    pub max_speed_mm_s: f64,
+    pub max_turn_rad_s: f64,
+    /// The object's pose in the hand frame at which the hand may grasp it.
+    pub hand_from_grasp: Isometry3<f64>,
+}
+
 /// The validated configuration.
 #[derive(Debug, Clone)]
 pub struct Config {
@@ -333,6 +371,7 @@ pub struct Config {
     pub tracking: TrackingSettings,
     pub model: ModelSettings,
     pub fitness: FitnessParams,
+    pub controller: ControllerSettings,
 }
 
 impl Config {
@@ -364,14 +403,14 @@ impl Config {
             field,
             problem,
         };
-        let calibration = match dir {
-            None if raw.camera.calibration == Path::new(EXAMPLE_CALIBRATION_NAME) => {
-                Calibration::parse(EXAMPLE_CALIBRATION, Path::new("config/SN-example.conf"))?
-            }
-            None => Calibration::load(&raw.camera.calibration)?,
-            Some(d) => Calibration::load(&d.join(&raw.camera.calibration))?,
+        // No calibration named (or the built-in configuration's): the example file.
+        let calibration = match (&raw.camera.calibration, dir) {
+            (Some(c), Some(d)) => Calibration::load(&d.join(c))?,
+            (Some(c), None) if c != Path::new(EXAMPLE_CALIBRATION_NAME) => Calibration::load(c)?,
+            _ => Calibration::parse(EXAMPLE_CALIBRATION, Path::new("config/SN-example.conf"))?,
         };
-        let left_from_hand = hand_eye(&raw.hand_eye).map_err(|p| invalid("hand_eye", "rotation_wxyz", p))?;
+        let left_from_hand = pose(raw.hand_eye.translation_mm, raw.hand_eye.rotation_wxyz)
+            .map_err(|p| invalid("hand_eye", "rotation_wxyz", p))?;
         if raw.hand_eye.translation_mm.iter().any(|v| !v.is_finite()) {
             return Err(invalid("hand_eye", "translation_mm", "must be finite numbers".into()));
         }
@@ -461,6 +500,13 @@ impl Config {
         if tracking.population < 4 {
             return Err(invalid("tracking", "population", "must be at least 4".into()));
         }
+        if !(1..=8).contains(&tracking.point_stride) {
+            return Err(invalid(
+                "tracking",
+                "point_stride",
+                format!("{} must lie in 1..=8", tracking.point_stride),
+            ));
+        }
         if tracking.generations_per_frame == 0 || tracking.acquire_generations == 0 {
             return Err(invalid(
                 "tracking",
@@ -476,13 +522,6 @@ impl Config {
                 "tracking",
                 "immigrants",
                 format!("{} must lie in [0, 1)", tracking.immigrants),
-            ));
-        }
-        if tracking.level >= robust.pyramid_levels {
-            return Err(invalid(
-                "tracking",
-                "level",
-                format!("{} must be below [robust] pyramid_levels", tracking.level),
             ));
         }
         let model = raw.model;
@@ -528,6 +567,7 @@ impl Config {
                 "e1 must be > 0 and e3 ≥ 0 (they define the maximum m)".into(),
             ));
         }
+        let controller = controller(&raw.controller).map_err(|(field, p)| invalid("controller", field, p))?;
         Ok(Config {
             calibration,
             left_from_hand,
@@ -537,6 +577,7 @@ impl Config {
             tracking,
             model,
             fitness,
+            controller,
         })
     }
 }
@@ -564,18 +605,46 @@ fn check_range(r: [f64; 2], positive: bool) -> Result<(), String> {
     Ok(())
 }
 
-fn hand_eye(raw: &RawHandEye) -> Result<Isometry3<f64>, String> {
-    let [w, x, y, z] = raw.rotation_wxyz;
+/// A pose from a translation and a `[w, x, y, z]` quaternion that must be of unit length.
+fn pose(t: [f64; 3], wxyz: [f64; 4]) -> Result<Isometry3<f64>, String> {
+    let [w, x, y, z] = wxyz;
     let q = Quaternion::new(w, x, y, z);
     let n = q.norm();
     if !n.is_finite() || (n - 1.0).abs() > 1e-3 {
         return Err(format!("[{w}, {x}, {y}, {z}] is not a unit quaternion (norm {n:.4})"));
     }
-    let t = raw.translation_mm;
     Ok(Isometry3::from_parts(
         Translation3::from(Vector3::new(t[0], t[1], t[2])),
         UnitQuaternion::from_quaternion(q),
     ))
+}
+
+/// Validates `[controller]`: the failing field and the problem.
+fn controller(raw: &RawController) -> Result<ControllerSettings, (&'static str, String)> {
+    for (field, v) in [
+        ("rate_hz", raw.rate_hz),
+        ("deadline_ms", raw.deadline_ms),
+        ("gain", raw.gain),
+        ("max_speed_mm_s", raw.max_speed_mm_s),
+        ("max_turn_deg_s", raw.max_turn_deg_s),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err((field, format!("{v} must be a positive number")));
+        }
+    }
+    if raw.grasp_position_mm.iter().any(|v| !v.is_finite()) {
+        return Err(("grasp_position_mm", "must be finite numbers".into()));
+    }
+    let hand_from_grasp =
+        pose(raw.grasp_position_mm, raw.grasp_rotation_wxyz).map_err(|p| ("grasp_rotation_wxyz", p))?;
+    Ok(ControllerSettings {
+        rate_hz: raw.rate_hz,
+        deadline: std::time::Duration::from_secs_f64(raw.deadline_ms * 1e-3),
+        gain: raw.gain,
+        max_speed_mm_s: raw.max_speed_mm_s,
+        max_turn_rad_s: raw.max_turn_deg_s.to_radians(),
+        hand_from_grasp,
+    })
 }
 
 #[cfg(test)]

@@ -1,12 +1,18 @@
 //! Lookup images: what the fitness reads per pixel (colour code, saturation and the
 //! outer-point verdict) packed into one `u32`, with a ring of outside texels around the
-//! image. The kernel clamps a projected point onto the padded image instead of branching
-//! on whether it is inside: a point off the image lands on the ring and reads "outside".
+//! covered region. The kernel clamps a projected point onto the padded region instead
+//! of branching on whether it is inside: a point off the region lands on the ring and
+//! reads "outside".
+//!
+//! A lookup image covers either a whole image (one-shot estimates) or only a region of
+//! interest around the predicted pose (tracking), converted straight from the frame's
+//! bytes as they arrived, row by row in loops the compiler vectorises.
 
 use rayon::prelude::*;
 
 use crate::camera::StereoRig;
-use crate::color::{rgb_to_hsv, ColorClasses};
+use crate::color::{hue_distance, ColorClasses, BLACK, GRAY, WHITE};
+use crate::fitness::OuterRule;
 use crate::frame::{ColorPlane, FrameLevel, PixelColor, Region};
 
 /// Colour code of a texel outside the image: it matches no model colour and, for outer
@@ -22,8 +28,9 @@ pub type Texel = u32;
 pub const TARGET_BIT: Texel = 1 << 16;
 
 /// Packs a pixel's colour code, saturation and outer-point verdict.
+#[inline(always)]
 pub fn texel(code: u8, sat: u8, target: bool) -> Texel {
-    code as Texel | (sat as Texel) << 8 | if target { TARGET_BIT } else { 0 }
+    code as Texel | (sat as Texel) << 8 | (target as Texel) << 16
 }
 
 /// The texel of the ring around the image.
@@ -33,19 +40,174 @@ pub const OUTSIDE_TEXEL: Texel = OUTSIDE as Texel | TARGET_BIT;
 /// padded image holds fewer texels than this (2K has 2.7 M).
 pub const MAX_TEXELS: usize = 1 << 23;
 
-/// One camera's texels, row-major, with one ring of [`OUTSIDE_TEXEL`]: image pixel
-/// `(u, v)` is texel `(u + 1, v + 1)`.
+/// How a pixel's colour becomes a texel: the Table 1 classes and the outer-point test
+/// of the model being searched for (eq. 16, or robust mode's colour-class test).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TexelRule {
+    pub classes: ColorClasses,
+    pub outer: OuterRule,
+    /// `H̄_in` as an OpenCV hue, and the outer test's hue threshold.
+    pub mean_hue: u8,
+    pub hue_threshold: u8,
+    /// The central rectangle's colour code and mean saturation, and the saturation
+    /// tolerance of the colour-class test.
+    pub center_code: u8,
+    pub center_sat: u8,
+    pub sat_tolerance: u8,
+}
+
+impl TexelRule {
+    /// The texel of a pixel with colour code `code`, saturation `sat` and raw OpenCV hue
+    /// `hue`. Branch-free, so row loops over it vectorise.
+    #[inline(always)]
+    pub fn texel(&self, code: u8, sat: u8, hue: u8) -> Texel {
+        let chromatic = code < 180;
+        let raw = hue_distance(hue, self.mean_hue) < self.hue_threshold;
+        let class = if self.center_code < 180 {
+            chromatic
+                & (hue_distance(code, self.mean_hue) < self.hue_threshold)
+                & (sat.abs_diff(self.center_sat) <= self.sat_tolerance)
+        } else {
+            code == self.center_code
+        };
+        let target = match self.outer {
+            OuterRule::RawHue => raw,
+            OuterRule::ColorClass => class,
+        };
+        texel(code, sat, target)
+    }
+
+    /// The texel of one pixel's [`PixelColor`].
+    pub fn of(&self, c: &PixelColor) -> Texel {
+        self.texel(c.code, c.sat, c.hue)
+    }
+
+    /// Texels of a row of packed RGB8 pixels (`rgb.len() == 3 * out.len()`), exactly as
+    /// [`crate::color::rgb_to_hsv`] and [`TexelRule::texel`] give them one by one.
+    pub fn rgb_row(&self, rgb: &[u8], out: &mut [Texel]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, the only feature `rgb_row_avx2` is compiled for.
+            return unsafe { self.rgb_row_avx2(rgb, out) };
+        }
+        self.rgb_row_chunks(rgb, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn rgb_row_avx2(&self, rgb: &[u8], out: &mut [Texel]) {
+        self.rgb_row_chunks(rgb, out)
+    }
+
+    #[inline(always)]
+    fn rgb_row_chunks(&self, rgb: &[u8], out: &mut [Texel]) {
+        const N: usize = 64;
+        let mut tail = [0u8; 3 * N];
+        for (src, dst) in rgb.chunks(3 * N).zip(out.chunks_mut(N)) {
+            // Fixed-size chunks let the compiler turn every loop below into vector code.
+            let src: &[u8; 3 * N] = match src.try_into() {
+                Ok(full) => full,
+                Err(_) => {
+                    tail[..src.len()].copy_from_slice(src);
+                    &tail
+                }
+            };
+            let (mut r, mut g, mut b) = ([0f32; N], [0f32; N], [0f32; N]);
+            for i in 0..N {
+                (r[i], g[i], b[i]) = (src[3 * i] as f32, src[3 * i + 1] as f32, src[3 * i + 2] as f32);
+            }
+            let mut texels = [0; N];
+            for (i, t) in texels.iter_mut().enumerate() {
+                let (h, s, v) = hsv(r[i], g[i], b[i]);
+                *t = self.texel_of_hsv(h, s, v);
+            }
+            dst.copy_from_slice(&texels[..dst.len()]);
+        }
+    }
+
+    /// [`TexelRule::texel`] of an HSV triple, in `u32` arithmetic with selects (vector code).
+    #[inline(always)]
+    fn texel_of_hsv(&self, h: u32, s: u32, v: u32) -> Texel {
+        let c = &self.classes;
+        let achromatic = if v >= c.white_v_min as u32 { WHITE } else { GRAY } as u32;
+        let light = if s <= c.achromatic_s_max as u32 { achromatic } else { h };
+        let code = if v <= c.black_v_max as u32 { BLACK as u32 } else { light };
+        let hue_gap = |a: u32| {
+            let d = a.abs_diff(self.mean_hue as u32);
+            d.min(180 - d.min(180))
+        };
+        let threshold = self.hue_threshold as u32;
+        let class = if self.center_code < 180 {
+            (code < 180)
+                & (hue_gap(code) < threshold)
+                & (s.abs_diff(self.center_sat as u32) <= self.sat_tolerance as u32)
+        } else {
+            code == self.center_code as u32
+        };
+        let target = match self.outer {
+            OuterRule::RawHue => hue_gap(h) < threshold,
+            OuterRule::ColorClass => class,
+        };
+        code | s << 8 | (target as Texel) << 16
+    }
+}
+
+/// `floor(x)` as an integer for `0 ≤ x < 2²³`, without a saturating cast (which would
+/// keep the loop from vectorising).
+#[inline(always)]
+fn floor_u32(x: f32) -> u32 {
+    const MAGIC: f32 = 8_388_608.0;
+    (x.floor() + MAGIC).to_bits() - MAGIC.to_bits()
+}
+
+/// [`crate::color::rgb_to_hsv`] on `f32` channel values without branches (same results,
+/// bit for bit: the same operations in the same order, selected instead of branched).
+#[inline(always)]
+fn hsv(r: f32, g: f32, b: f32) -> (u32, u32, u32) {
+    let v = r.max(g).max(b);
+    let min = r.min(g).min(b);
+    let delta = v - min;
+    // v ≥ 1 whenever v > 0 (integer channels), so `max(1)` only guards v = 0, where
+    // delta = 0 and s = 0 either way.
+    let s = 255.0 * delta / v.max(1.0);
+    let (vr, vg) = (v == r, v == g);
+    let offset = if vr {
+        0.0
+    } else if vg {
+        120.0
+    } else {
+        240.0
+    };
+    let num = if vr {
+        g - b
+    } else if vg {
+        b - r
+    } else {
+        r - g
+    };
+    let h = offset + 60.0 * num / delta.max(1.0);
+    let h = if delta == 0.0 { 0.0 } else { h };
+    let h = if h < 0.0 { h + 360.0 } else { h };
+    let hq = floor_u32(h / 2.0 + 0.5);
+    let hq = if hq >= 180 { hq - 180 } else { hq };
+    (hq, floor_u32(s + 0.5), floor_u32(v))
+}
+
+/// One camera's texels over a region of its image, row-major, with one ring of
+/// [`OUTSIDE_TEXEL`]: image pixel `(u, v)` is texel `(u − origin.0 + 1, v − origin.1 + 1)`.
 #[derive(Debug, Clone)]
 pub struct LookupImage {
-    /// Padded size (image size + 2).
+    /// Padded size (region size + 2).
     pub width: usize,
     pub height: usize,
+    /// Image pixel of the region's top-left corner.
+    pub origin: (usize, usize),
     pub px: Vec<Texel>,
 }
 
 impl LookupImage {
-    /// Packs `plane`; `target` decides each pixel's outer-point verdict.
-    pub fn new(plane: &ColorPlane, target: impl Fn(&PixelColor) -> bool + Sync) -> Self {
+    /// Packs the whole of `plane` with `rule`.
+    pub fn new(plane: &ColorPlane, rule: &TexelRule) -> Self {
         let (w, h) = (plane.width + 2, plane.height + 2);
         assert!(
             w * h < MAX_TEXELS,
@@ -58,13 +220,48 @@ impl LookupImage {
             .zip(plane.px.par_chunks_exact(plane.width))
             .for_each(|(row, src)| {
                 for (t, c) in row[1..=plane.width].iter_mut().zip(src) {
-                    *t = texel(c.code, c.sat, target(c));
+                    *t = rule.of(c);
                 }
             });
         Self {
             width: w,
             height: h,
+            origin: (0, 0),
             px,
+        }
+    }
+
+    /// An empty region (every point reads "outside") with room for a whole
+    /// `width × height` image, so refills never allocate.
+    pub fn with_capacity(width: usize, height: usize) -> Self {
+        let mut px = Vec::with_capacity((width + 2) * (height + 2));
+        px.extend_from_slice(&[OUTSIDE_TEXEL; 4]);
+        Self {
+            width: 2,
+            height: 2,
+            origin: (0, 0),
+            px,
+        }
+    }
+
+    /// Refills with eye `eye` (0 left, 1 right) of `frame` over `roi` (clipped to the
+    /// image); points elsewhere read "outside". Allocates only when `roi` is larger than
+    /// any region before (never after [`LookupImage::with_capacity`] for the frame size).
+    pub fn refill(&mut self, frame: &SbsBytes, eye: usize, roi: &Region, rule: &TexelRule) {
+        let (x0, x1) = (roi.cols.start.min(frame.width), roi.cols.end.min(frame.width));
+        let (y0, y1) = (roi.rows.start.min(frame.height), roi.rows.end.min(frame.height));
+        let (w, h) = (x1.saturating_sub(x0), y1.saturating_sub(y0));
+        self.width = w + 2;
+        self.height = h + 2;
+        self.origin = (x0, y0);
+        self.px.clear();
+        self.px.resize(self.width * self.height, OUTSIDE_TEXEL);
+        if w == 0 {
+            return;
+        }
+        for (y, row) in (y0..y1).zip(self.px.chunks_exact_mut(self.width).skip(1)) {
+            let src = &frame.bytes[y * frame.row_stride + (eye * frame.width + x0) * 3..][..3 * w];
+            rule.rgb_row(src, &mut row[1..=w]);
         }
     }
 }
@@ -90,49 +287,6 @@ impl SbsBytes<'_> {
     }
 }
 
-impl LookupImage {
-    /// An image of outside texels for `width × height` pixels.
-    pub fn outside(width: usize, height: usize) -> Self {
-        let (w, h) = (width + 2, height + 2);
-        Self {
-            width: w,
-            height: h,
-            px: vec![OUTSIDE_TEXEL; w * h],
-        }
-    }
-
-    /// Refills from eye `eye` (0 left, 1 right) of `frame`, converting only the pixels in
-    /// `roi`; every other texel reads "outside". Allocates only when the size changes.
-    pub fn refill(
-        &mut self,
-        frame: &SbsBytes,
-        eye: usize,
-        roi: &Region,
-        classes: &ColorClasses,
-        target: impl Fn(&PixelColor) -> bool,
-    ) {
-        if self.width != frame.width + 2 || self.height != frame.height + 2 {
-            *self = Self::outside(frame.width, frame.height);
-        } else {
-            self.px.fill(OUTSIDE_TEXEL);
-        }
-        let (x0, x1) = (roi.cols.start.min(frame.width), roi.cols.end.min(frame.width));
-        for y in roi.rows.start..roi.rows.end.min(frame.height) {
-            let src = &frame.bytes[y * frame.row_stride + (eye * frame.width + x0) * 3..];
-            let dst = &mut self.px[(y + 1) * self.width + 1 + x0..];
-            for (t, p) in dst[..x1.saturating_sub(x0)].iter_mut().zip(src.chunks_exact(3)) {
-                let (hue, sat, v) = rgb_to_hsv(p[0], p[1], p[2]);
-                let c = PixelColor {
-                    code: classes.code(hue, sat, v),
-                    sat,
-                    hue,
-                };
-                *t = texel(c.code, c.sat, target(&c));
-            }
-        }
-    }
-}
-
 /// Both lookup images of one pyramid level, with the level's rig.
 #[derive(Debug, Clone)]
 pub struct LevelLookup {
@@ -144,12 +298,25 @@ pub struct LevelLookup {
 }
 
 impl LevelLookup {
-    pub fn new(level: &FrameLevel, target: impl Fn(&PixelColor) -> bool + Sync) -> Self {
+    /// Whole-image lookups of a pyramid level.
+    pub fn new(level: &FrameLevel, rule: &TexelRule) -> Self {
         Self {
             scale: level.scale,
             rig: level.rig.clone(),
-            left: LookupImage::new(&level.left, &target),
-            right: LookupImage::new(&level.right, &target),
+            left: LookupImage::new(&level.left, rule),
+            right: LookupImage::new(&level.right, rule),
+        }
+    }
+
+    /// Full-resolution lookups for `rig`'s image size covering nothing yet (tracking
+    /// refills regions of them frame by frame).
+    pub fn regions(rig: &StereoRig) -> Self {
+        let (w, h) = (rig.width as usize, rig.height as usize);
+        Self {
+            scale: 1.0,
+            rig: rig.clone(),
+            left: LookupImage::with_capacity(w, h),
+            right: LookupImage::with_capacity(w, h),
         }
     }
 }
@@ -157,6 +324,19 @@ impl LevelLookup {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::color::rgb_to_hsv;
+
+    fn rule(outer: OuterRule, center_code: u8) -> TexelRule {
+        TexelRule {
+            classes: ColorClasses::default(),
+            outer,
+            mean_hue: 10,
+            hue_threshold: 15,
+            center_code,
+            center_sat: 150,
+            sat_tolerance: 50,
+        }
+    }
 
     #[test]
     fn image_is_framed_by_outside_texels() {
@@ -166,18 +346,85 @@ mod tests {
             px: (0..6)
                 .map(|i| PixelColor {
                     code: i as u8,
-                    sat: 10 * i as u8,
+                    sat: 10 * i as u8 + 120,
                     hue: 0,
                 })
                 .collect(),
         };
-        let img = LookupImage::new(&plane, |c| c.code % 2 == 1);
-        assert_eq!((img.width, img.height), (5, 4));
+        let img = LookupImage::new(&plane, &rule(OuterRule::ColorClass, 10));
+        assert_eq!((img.width, img.height, img.origin), (5, 4, (0, 0)));
         assert!(img.px[..5].iter().all(|&t| t == OUTSIDE_TEXEL));
         assert!(img.px[15..].iter().all(|&t| t == OUTSIDE_TEXEL));
         assert_eq!([img.px[5], img.px[9]], [OUTSIDE_TEXEL; 2]);
-        // Pixel (2, 1) is texel (3, 2): code 5, saturation 50, target.
-        assert_eq!(img.px[2 * 5 + 3], 5 | 50 << 8 | TARGET_BIT);
-        assert_eq!(img.px[5 + 1], 0);
+        // Pixel (2, 1) is texel (3, 2): code 5, saturation 170, target (hue 5 near 10).
+        assert_eq!(img.px[2 * 5 + 3], 5 | 170 << 8 | TARGET_BIT);
+        assert_eq!(img.px[5 + 1], 120 << 8 | TARGET_BIT);
+    }
+
+    /// Every RGB colour: the row conversion equals the scalar HSV, classes and rule.
+    #[test]
+    fn row_conversion_equals_the_scalar_path_on_every_colour() {
+        for (outer, center) in [
+            (OuterRule::ColorClass, 10),
+            (OuterRule::ColorClass, GRAY),
+            (OuterRule::RawHue, 10),
+        ] {
+            let rule = rule(outer, center);
+            let mut rgb = vec![0u8; 3 * 256];
+            let mut out = vec![0; 256];
+            for r in (0..=255u8).step_by(if outer == OuterRule::ColorClass && center == 10 {
+                1
+            } else {
+                3
+            }) {
+                for g in 0..=255u8 {
+                    for (b, p) in rgb.chunks_exact_mut(3).enumerate() {
+                        p.copy_from_slice(&[r, g, b as u8]);
+                    }
+                    rule.rgb_row(&rgb, &mut out);
+                    for (b, &t) in out.iter().enumerate() {
+                        let (h, s, v) = rgb_to_hsv(r, g, b as u8);
+                        let want = rule.texel(rule.classes.code(h, s, v), s, h);
+                        assert_eq!(t, want, "rgb {r} {g} {b} ({outer:?}, centre {center})");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn refill_covers_the_region_only() {
+        // A 6×2 side-by-side frame (eyes 3×2), rows padded to 20 bytes; left eye red,
+        // right eye blue.
+        let mut bytes = vec![0u8; 40];
+        for y in 0..2 {
+            for x in 0..6 {
+                let c = if x < 3 { [255, 0, 0] } else { [0, 0, 255] };
+                bytes[y * 20 + 3 * x..][..3].copy_from_slice(&c);
+            }
+        }
+        let frame = SbsBytes {
+            bytes: &bytes,
+            width: 3,
+            height: 2,
+            row_stride: 20,
+        };
+        assert!(frame.is_complete());
+        // The target is saturated red: red pixels are target, blue ones background.
+        let rule = TexelRule {
+            center_sat: 250,
+            ..rule(OuterRule::ColorClass, 0)
+        };
+        let mut img = LookupImage::with_capacity(3, 2);
+        let capacity = img.px.capacity();
+        let roi = Region { cols: 1..9, rows: 1..2 };
+        img.refill(&frame, 1, &roi, &rule);
+        assert_eq!((img.width, img.height, img.origin), (4, 3, (1, 1)));
+        assert_eq!(img.px[4 + 1], texel(120, 255, false));
+        assert_eq!(img.px[4 + 2], texel(120, 255, false));
+        assert_eq!(img.px.iter().filter(|&&t| t == OUTSIDE_TEXEL).count(), 10);
+        img.refill(&frame, 0, &Region { cols: 0..3, rows: 0..2 }, &rule);
+        assert_eq!(img.px[5 + 1], texel(0, 255, true));
+        assert_eq!(img.px.capacity(), capacity, "no reallocation");
     }
 }

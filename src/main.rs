@@ -24,10 +24,14 @@ enum Command {
     Estimate(cli::estimate::EstimateArgs),
     /// Render a synthetic stereo frame of a photo card in a cluttered scene.
     Render(cli::render::RenderArgs),
-    /// Publish stereo frames on photopose/stereo_frames (synthetic camera).
+    /// Publish stereo frames on photopose/stereo_frames (synthetic camera or replay).
     Capture(cli::capture::CaptureArgs),
     /// Track the model in the frame stream and publish poses on photopose/poses.
     Estimator(cli::estimator::EstimatorArgs),
+    /// Example robot client: visual servoing on photopose/poses (commands logged).
+    Controller(cli::controller::ControllerArgs),
+    /// Run capture, estimator and controller on the synthetic camera; summary and plot.
+    Demo(cli::demo::DemoArgs),
 }
 
 fn main() -> ExitCode {
@@ -42,6 +46,8 @@ fn main() -> ExitCode {
         Command::Render(a) => cli::render::run(a),
         Command::Capture(a) => cli::capture::run(a),
         Command::Estimator(a) => cli::estimator::run(a),
+        Command::Controller(a) => cli::controller::run(a),
+        Command::Demo(a) => cli::demo::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -10,12 +10,60 @@ pub const POSES_SERVICE: &str = "photopose/poses";
 /// Service carrying the ground-truth [`PoseMsg`] of synthetic and replayed frames.
 pub const TRUTH_SERVICE: &str = "photopose/truth";
 
-/// Pixel formats of a frame payload.
+/// Pixel formats of a frame payload ([`FrameHeader::pixel_format`]).
 pub mod pixel_format {
     /// 3 bytes per pixel, R G B.
     pub const RGB8: u32 = 0;
     /// 2 bytes per pixel, Y0 U Y1 V (as the ZED 2i delivers over UVC).
     pub const YUYV: u32 = 1;
+}
+
+/// A frame payload's pixel format as a type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PixelFormat {
+    Rgb8,
+    Yuyv,
+}
+
+impl PixelFormat {
+    /// The [`pixel_format`] code in frame headers.
+    pub fn code(self) -> u32 {
+        match self {
+            PixelFormat::Rgb8 => pixel_format::RGB8,
+            PixelFormat::Yuyv => pixel_format::YUYV,
+        }
+    }
+
+    pub fn from_code(code: u32) -> Option<Self> {
+        match code {
+            pixel_format::RGB8 => Some(PixelFormat::Rgb8),
+            pixel_format::YUYV => Some(PixelFormat::Yuyv),
+            _ => None,
+        }
+    }
+
+    /// Bytes per pixel.
+    pub fn bytes_per_pixel(self) -> usize {
+        match self {
+            PixelFormat::Rgb8 => 3,
+            PixelFormat::Yuyv => 2,
+        }
+    }
+
+    /// `"RGB8"` or `"YUYV"`, as in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelFormat::Rgb8 => "RGB8",
+            PixelFormat::Yuyv => "YUYV",
+        }
+    }
+
+    /// Parses [`PixelFormat::name`] (case-insensitive).
+    pub fn parse(name: &str) -> Option<Self> {
+        [PixelFormat::Rgb8, PixelFormat::Yuyv]
+            .into_iter()
+            .find(|f| f.name().eq_ignore_ascii_case(name.trim()))
+    }
 }
 
 /// User header of a stereo frame. The payload is the side-by-side image (left eye in the

@@ -1,17 +1,38 @@
-//! The real-time service as separate processes: `photopose capture` (synthetic camera,
-//! moving card) and `photopose estimator` publish over iceoryx2; this test subscribes
-//! to `photopose/poses` and `photopose/truth` like any client would.
+//! The real-time service as separate processes: `photopose capture`, `estimator`,
+//! `controller` and `demo` talk over iceoryx2; these tests subscribe to
+//! `photopose/poses` and `photopose/truth` like any client would. They share the
+//! service names, so they run one at a time.
 
 use std::collections::HashMap;
-use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use photopose::ipc::Ipc;
+use photopose::ipc::{Ipc, PoseSubscriber};
 use photopose::messages::{status, PoseMsg, POSES_SERVICE, TRUTH_SERVICE};
+use photopose::stats::Samples;
+
+/// One process test at a time (they use the same iceoryx2 services).
+fn serial() -> MutexGuard<'static, ()> {
+    static LOCK: Mutex<()> = Mutex::new(());
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 /// Kills a child process when dropped (a failed assertion must not leave it running).
 struct Running(Child);
+
+impl Running {
+    /// Resident memory of the process, kB.
+    fn rss_kb(&self) -> u64 {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.0.id())).unwrap_or_default();
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix("VmRSS:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+            .unwrap_or(0)
+    }
+}
 
 impl Drop for Running {
     fn drop(&mut self) {
@@ -20,10 +41,15 @@ impl Drop for Running {
     }
 }
 
+fn photopose() -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_photopose"));
+    cmd.current_dir(env!("CARGO_MANIFEST_DIR")).env("RUST_LOG", "warn");
+    cmd
+}
+
 fn spawn(args: &[&str]) -> Running {
-    let child = Command::new(env!("CARGO_BIN_EXE_photopose"))
+    let child = photopose()
         .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
@@ -31,29 +57,99 @@ fn spawn(args: &[&str]) -> Running {
     Running(child)
 }
 
+fn model() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/examples/rocket.model")
+        .display()
+        .to_string()
+}
+
+fn estimator() -> Running {
+    spawn(&["estimator", "--model", &model()])
+}
+
+/// A fresh scratch directory under the target dir.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("target/test-scratch")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A test's view of the pose streams: every pose and truth, with the time it arrived.
+struct Watcher {
+    _ipc: Ipc,
+    poses: PoseSubscriber,
+    truth: PoseSubscriber,
+    got: Vec<(PoseMsg, Instant)>,
+    truths: HashMap<u64, PoseMsg>,
+}
+
+impl Watcher {
+    fn new(name: &str) -> Self {
+        let ipc = Ipc::new(name).expect("iceoryx2 node");
+        let poses = ipc.pose_subscriber(POSES_SERVICE).expect("poses");
+        let truth = ipc.pose_subscriber(TRUTH_SERVICE).expect("truth");
+        Self {
+            _ipc: ipc,
+            poses,
+            truth,
+            got: Vec::new(),
+            truths: HashMap::new(),
+        }
+    }
+
+    /// Collects for `d`.
+    fn collect(&mut self, d: Duration) {
+        let end = Instant::now() + d;
+        while Instant::now() < end {
+            self.drain();
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+
+    /// Collects until a pose arrives (true) or `d` passed (false).
+    fn until_pose(&mut self, d: Duration) -> bool {
+        let (end, before) = (Instant::now() + d, self.got.len());
+        while Instant::now() < end {
+            self.drain();
+            if self.got.len() > before {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        false
+    }
+
+    fn drain(&mut self) {
+        while let Some(s) = self.poses.receive().expect("receive pose") {
+            self.got.push((*s.payload(), Instant::now()));
+        }
+        while let Some(s) = self.truth.receive().expect("receive truth") {
+            self.truths.insert(s.payload().frame_id, *s.payload());
+        }
+    }
+}
+
+fn position_error(p: &PoseMsg, t: &PoseMsg) -> f64 {
+    (0..3)
+        .map(|i| (p.position_mm[i] - t.position_mm[i]).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
 #[test]
 fn capture_and_estimator_processes_track_a_moving_card() {
-    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/examples/rocket.model");
-    let ipc = Ipc::new("photopose-test-client").expect("iceoryx2 node");
-    let poses = ipc.pose_subscriber(POSES_SERVICE).expect("poses");
-    let truth = ipc.pose_subscriber(TRUTH_SERVICE).expect("truth");
+    let _serial = serial();
+    let mut w = Watcher::new("photopose-test-track");
     // The estimator first: processes may start in any order.
-    let _estimator = spawn(&["estimator", "--model", model.to_str().unwrap(), "--seconds", "9"]);
+    let _estimator = estimator();
     std::thread::sleep(Duration::from_millis(300));
-    let _capture = spawn(&["capture", "--speed", "150", "--seconds", "8"]);
-
-    let mut got: Vec<PoseMsg> = Vec::new();
-    let mut truths: HashMap<u64, PoseMsg> = HashMap::new();
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(9) {
-        while let Some(s) = poses.receive().expect("receive pose") {
-            got.push(*s.payload());
-        }
-        while let Some(s) = truth.receive().expect("receive truth") {
-            truths.insert(s.payload().frame_id, *s.payload());
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    let _capture = spawn(&["capture", "--speed", "150"]);
+    w.collect(Duration::from_secs(8));
+    let got: Vec<PoseMsg> = w.got.iter().map(|(p, _)| *p).collect();
     assert!(got.len() > 100, "only {} poses", got.len());
     // Every pose belongs to a real frame, in order, once, with consistent timestamps.
     for pair in got.windows(2) {
@@ -65,7 +161,8 @@ fn capture_and_estimator_processes_track_a_moving_card() {
         );
     }
     for p in &got {
-        let t = truths
+        let t = w
+            .truths
             .get(&p.frame_id)
             .unwrap_or_else(|| panic!("pose for unknown frame {}", p.frame_id));
         assert_eq!(p.capture_time_ns, t.capture_time_ns, "frame {}", p.frame_id);
@@ -75,37 +172,217 @@ fn capture_and_estimator_processes_track_a_moving_card() {
     let first = &got[0];
     let acquisition_s = (first.publish_time_ns - first.capture_time_ns) as f64 * 1e-9;
     // Tracking error against the truth of the same frame, after acquisition.
-    let mut errors: Vec<f64> = got[1..]
-        .iter()
-        .map(|p| {
-            let t = &truths[&p.frame_id];
-            (0..3)
-                .map(|i| (p.position_mm[i] - t.position_mm[i]).powi(2))
-                .sum::<f64>()
-                .sqrt()
-        })
-        .collect();
-    errors.sort_by(f64::total_cmp);
-    let p95 = errors[(errors.len() as f64 * 0.95).ceil() as usize - 1];
+    let errors = Samples::new(got[1..].iter().map(|p| position_error(p, &w.truths[&p.frame_id])));
     let tracking = got.iter().filter(|p| p.status == status::TRACKING).count();
-    let mut latency: Vec<f64> = got[1..]
-        .iter()
-        .map(|p| (p.publish_time_ns - p.capture_time_ns) as f64 * 1e-6)
-        .collect();
-    latency.sort_by(f64::total_cmp);
-    println!(
-        "{} poses ({tracking} tracking), acquisition {acquisition_s:.2} s, error median {:.1} mm p95 {p95:.1} mm, \
-         capture→pose p50 {:.1} ms p99 {:.1} ms",
-        got.len(),
-        errors[errors.len() / 2],
-        latency[latency.len() / 2],
-        latency[(latency.len() as f64 * 0.99).ceil() as usize - 1]
+    let latency = Samples::new(
+        got[1..]
+            .iter()
+            .map(|p| (p.publish_time_ns - p.capture_time_ns) as f64 * 1e-6),
     );
-    assert!(p95 <= 10.0, "p95 tracking error {p95:.1} mm at 150 mm/s");
+    let span = got.last().unwrap().frame_id - first.frame_id + 1;
+    println!(
+        "{} poses ({tracking} tracking) for {span} frames, acquisition {acquisition_s:.2} s, error median {:.1} mm \
+         p95 {:.1} mm, capture→pose p50 {:.1} ms p99 {:.1} ms",
+        got.len(),
+        errors.median(),
+        errors.percentile(95.0),
+        latency.median(),
+        latency.percentile(99.0)
+    );
+    assert!(
+        errors.percentile(95.0) <= 10.0,
+        "p95 tracking error {:.1} mm at 150 mm/s",
+        errors.percentile(95.0)
+    );
     assert!(acquisition_s < 1.0, "acquisition took {acquisition_s:.2} s");
     assert!(
         tracking as f64 >= 0.95 * got.len() as f64,
         "{tracking} of {} poses tracking",
         got.len()
     );
+}
+
+#[test]
+fn processes_start_in_any_order_and_resume_after_a_crash() {
+    let _serial = serial();
+    let mut w = Watcher::new("photopose-test-restart");
+    // Camera first this time.
+    let capture = spawn(&["capture"]);
+    std::thread::sleep(Duration::from_millis(500));
+    let estimator1 = estimator();
+    assert!(w.until_pose(Duration::from_secs(5)), "no pose from the first estimator");
+    w.collect(Duration::from_secs(1));
+    // The estimator dies without cleaning up; a new one takes over.
+    drop(estimator1);
+    w.collect(Duration::from_millis(200));
+    let before = w.got.len();
+    let restarted = Instant::now();
+    let _estimator2 = estimator();
+    assert!(
+        w.until_pose(Duration::from_secs(5)),
+        "no pose after the estimator restart"
+    );
+    let resumed = restarted.elapsed();
+    assert!(
+        resumed < Duration::from_secs(2),
+        "poses resumed {resumed:?} after the estimator restart"
+    );
+    assert!(w.got.len() > before);
+    // Now the camera dies and comes back: its frame ids start again at 0.
+    w.collect(Duration::from_secs(1));
+    drop(capture);
+    w.collect(Duration::from_millis(300));
+    let restarted = Instant::now();
+    let _capture2 = spawn(&["capture"]);
+    assert!(w.until_pose(Duration::from_secs(5)), "no pose after the camera restart");
+    let camera_resumed = restarted.elapsed();
+    w.collect(Duration::from_secs(1));
+    println!("poses resumed {resumed:?} after the estimator restart, {camera_resumed:?} after the camera restart");
+    assert!(
+        camera_resumed < Duration::from_secs(2),
+        "poses resumed {camera_resumed:?} after the camera restart"
+    );
+    // No frame got two poses from one estimator-camera pair: ids increase between restarts.
+    let restarts = w.got.windows(2).filter(|p| p[1].0.frame_id <= p[0].0.frame_id).count();
+    assert!(
+        restarts <= 1,
+        "frame ids went back {restarts} times (one camera restart)"
+    );
+}
+
+#[test]
+fn a_slow_subscriber_never_grows_memory() {
+    let _serial = serial();
+    let ipc = Ipc::new("photopose-test-slow").expect("iceoryx2 node");
+    // A subscriber that takes one frame per second and never the rest.
+    let frames = ipc.frame_subscriber().expect("frames");
+    let capture = spawn(&["capture"]);
+    let estimator = estimator();
+    let mut rss = Vec::new();
+    for second in 0..8 {
+        std::thread::sleep(Duration::from_secs(1));
+        if let Some(frame) = frames.receive().expect("receive") {
+            assert!(frame.payload().len() >= 1280 * 720 * 6);
+        }
+        if second >= 2 {
+            rss.push((capture.rss_kb(), estimator.rss_kb()));
+        }
+    }
+    let (first, last) = (rss[0], *rss.last().unwrap());
+    println!(
+        "resident memory, first → last: capture {} → {} kB, estimator {} → {} kB",
+        first.0, last.0, first.1, last.1
+    );
+    assert!(
+        last.0 <= first.0 + 2048,
+        "capture grew from {} to {} kB",
+        first.0,
+        last.0
+    );
+    assert!(
+        last.1 <= first.1 + 2048,
+        "estimator grew from {} to {} kB",
+        first.1,
+        last.1
+    );
+}
+
+#[test]
+fn replay_plays_a_recording_with_its_truth() {
+    let _serial = serial();
+    let dir = scratch("replay");
+    let rec = dir.join("rec");
+    let out = photopose()
+        .args(["capture", "--fps", "20", "--seconds", "1.5", "--record"])
+        .arg(&rec)
+        .output()
+        .expect("record");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(rec.join("frames.csv")).expect("frames.csv");
+    let recorded = csv.lines().count() - 1;
+    assert!(recorded >= 10, "{recorded} frames recorded");
+
+    let mut w = Watcher::new("photopose-test-replay");
+    let _estimator = estimator();
+    std::thread::sleep(Duration::from_millis(300));
+    let replay = spawn(&["capture", "--source", &format!("replay:{}", rec.display())]);
+    w.collect(Duration::from_secs(3));
+    drop(replay);
+    assert_eq!(
+        w.truths.len(),
+        recorded,
+        "every recorded frame is replayed with its truth"
+    );
+    let tracked: Vec<f64> = w.got[1..]
+        .iter()
+        .map(|(p, _)| position_error(p, &w.truths[&p.frame_id]))
+        .collect();
+    assert!(!tracked.is_empty(), "poses for the replayed frames");
+    let errors = Samples::new(tracked);
+    println!(
+        "{} poses on {recorded} replayed frames, error median {:.1} mm",
+        w.got.len(),
+        errors.median()
+    );
+    assert!(
+        errors.median() <= 10.0,
+        "median error {:.1} mm on the replay",
+        errors.median()
+    );
+    // A corrupt frame: one line naming the file, non-zero exit.
+    std::fs::write(rec.join("000003.png"), b"not a png").unwrap();
+    let out = photopose()
+        .args([
+            "capture",
+            "--source",
+            &format!("replay:{}", rec.display()),
+            "--fps",
+            "100",
+        ])
+        .output()
+        .expect("replay");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("000003.png"), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+}
+
+#[test]
+fn demo_runs_everything_and_leaves_no_stale_resources() {
+    let _serial = serial();
+    let dir = scratch("demo");
+    let plot = dir.join("trajectory.png");
+    let out: Output = photopose()
+        .args(["demo", "--seconds", "6", "--plot"])
+        .arg(&plot)
+        .output()
+        .expect("demo");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for needle in [
+        "frames",
+        "poses",
+        "dropped",
+        "position error",
+        "p95",
+        "p99",
+        "trajectory plot",
+    ] {
+        assert!(stdout.contains(needle), "{needle:?} missing from:\n{stdout}");
+    }
+    let img = image::open(&plot).expect("plot PNG");
+    assert_eq!((img.width(), img.height()), (1200, 900));
+    // Every process has gone, and with it every photopose service.
+    use iceoryx2::service::Service;
+    let mut left = Vec::new();
+    iceoryx2::service::ipc::Service::list(iceoryx2::config::Config::global_config(), |s| {
+        left.push(s.static_details.name().as_str().to_string());
+        iceoryx2::prelude::CallbackProgression::Continue
+    })
+    .expect("list services");
+    let ours: Vec<_> = left.iter().filter(|n| n.starts_with("photopose/")).collect();
+    assert!(ours.is_empty(), "services left behind: {ours:?}");
 }

@@ -1,32 +1,41 @@
 //! `photopose capture`: publishes side-by-side frames on `photopose/stereo_frames`,
-//! rendered in place into loaned shared memory, and each frame's ground truth on
-//! `photopose/truth`.
+//! written by the source straight into loaned shared memory, and each frame's ground
+//! truth (when known) on `photopose/truth`; optionally records them.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, bail, Result};
 
-use crate::capture::{pose_msg, Source, Trajectory};
+use crate::capture::record::Recorder;
+use crate::capture::replay::ReplaySource;
+use crate::capture::synthetic::SyntheticSource;
+use crate::capture::{FrameSource, Source};
 use crate::config::Config;
 use crate::ipc::{send_pose, Ipc};
-use crate::messages::{monotonic_ns, pixel_format, FrameHeader, TRUTH_SERVICE};
-use crate::render::{Renderer, SceneSpec};
+use crate::messages::{FrameHeader, TRUTH_SERVICE};
 
 /// Publish stereo frames.
 #[derive(clap::Args, Debug)]
 pub struct CaptureArgs {
-    /// `synthetic[:SCENE.toml]`: the synthetic camera on a scene file (default
-    /// `config/scenes/rocket.toml`), its card moving along a smooth loop.
+    /// `synthetic[:SCENE.toml]` (the synthetic camera on a scene file, default
+    /// `config/scenes/rocket.toml`, its card moving along a smooth loop) or `replay:DIR`
+    /// (a recorded sequence).
     #[arg(long, default_value = "synthetic")]
     pub source: String,
-    /// Frame rate, frames per second.
-    #[arg(long, default_value_t = 60.0)]
-    pub fps: f64,
+    /// Frame rate, frames per second (synthetic default 60; replay default: as recorded).
+    #[arg(long)]
+    pub fps: Option<f64>,
     /// Peak speed of the synthetic card, mm/s.
     #[arg(long, default_value_t = 150.0)]
     pub speed: f64,
-    /// Stop after this many seconds (0: run until interrupted).
+    /// Replay: start again after the last frame.
+    #[arg(long = "loop")]
+    pub looping: bool,
+    /// Also record the frames (and their truth) into this directory, in the replay format.
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<PathBuf>,
+    /// Stop after this many seconds (0: run until interrupted or the replay ends).
     #[arg(long, default_value_t = 0.0)]
     pub seconds: f64,
     /// Configuration file; built-in defaults otherwise.
@@ -34,71 +43,87 @@ pub struct CaptureArgs {
     pub config: Option<PathBuf>,
 }
 
+/// Default synthetic frame rate: the ZED 2i's HD rate.
+const DEFAULT_FPS: f64 = 60.0;
+
 pub fn run(args: &CaptureArgs) -> Result<()> {
-    if !(args.fps.is_finite() && args.fps > 0.0) {
-        return Err(anyhow!("--fps {} must be a positive number", args.fps));
+    if let Some(fps) = args.fps.filter(|f| !(f.is_finite() && *f > 0.0)) {
+        bail!("--fps {fps} must be a positive number");
+    }
+    if !(args.speed.is_finite() && args.speed >= 0.0) {
+        bail!("--speed {} must be a number ≥ 0", args.speed);
     }
     let config = Config::load(args.config.as_deref())?;
-    let Source::Synthetic(scene_path) = Source::parse(&args.source)?;
-    let spec = SceneSpec::load(&scene_path)?;
-    let rig = config.calibration.rig(spec.resolution.into())?;
-    let mut scene = spec.build(&config.left_from_hand)?;
-    let trajectory = Trajectory::with_peak_speed(scene.card.hand_from_model, args.speed);
-    let (w, h) = (rig.width as usize, rig.height as usize);
-    let renderer = Renderer::new(&rig, &config.left_from_hand, &scene);
-    let bytes = renderer.frame_len();
+    let mut source: Box<dyn FrameSource> = match Source::parse(&args.source)? {
+        Source::Synthetic(scene) => Box::new(SyntheticSource::open(
+            &scene,
+            &config,
+            args.fps.unwrap_or(DEFAULT_FPS),
+            args.speed,
+        )?),
+        Source::Replay(dir) => Box::new(ReplaySource::open(&dir, args.fps, args.looping)?),
+    };
+    let geometry = source.geometry();
+    let mut recorder = match &args.record {
+        Some(dir) => Some(Recorder::create(dir, geometry, &args.source)?),
+        None => None,
+    };
     let ipc = Ipc::new("photopose-capture")?;
-    let frames = ipc.frame_publisher(bytes)?;
+    let frames = ipc.frame_publisher(geometry.frame_len())?;
     let truth = ipc.pose_publisher(TRUTH_SERVICE)?;
-    tracing::info!(
-        "capture: {} at {} fps, {w}x{h} per eye, card loop {:.1} s at up to {:.0} mm/s",
-        scene_path.display(),
-        args.fps,
-        trajectory.period_s,
-        args.speed
-    );
+    tracing::info!("capture: {}", source.describe());
+
     let start = Instant::now();
-    let period = Duration::from_secs_f64(1.0 / args.fps);
     let mut report = Instant::now();
-    let mut published_since = 0u32;
-    for frame_id in 0u64.. {
-        let elapsed = start.elapsed();
-        if args.seconds > 0.0 && elapsed.as_secs_f64() >= args.seconds {
+    let (mut published, mut since_report) = (0u64, 0u32);
+    while let Some(due) = source.next_due() {
+        if args.seconds > 0.0 && start.elapsed().as_secs_f64() >= args.seconds {
             break;
         }
-        // Frame pacing: never faster than the camera; the card moves by frame time.
-        let due = period * frame_id as u32;
-        if !ipc.wait(due.saturating_sub(elapsed)) {
+        if !ipc.wait(due.saturating_duration_since(Instant::now())) {
             break;
         }
-        let pose = trajectory.pose_at(frame_id as f64 / args.fps);
-        scene.card.hand_from_model = pose;
         let mut sample = frames
-            .loan_slice(bytes)
+            .loan_slice(geometry.frame_len())
             .map_err(|e| anyhow!("cannot loan a frame sample: {e:?}"))?;
-        renderer.render_into(&scene, sample.payload_mut());
-        let capture_time_ns = monotonic_ns();
+        let Some(info) = source.fill(sample.payload_mut())? else {
+            continue;
+        };
+        let frame_id = published;
         *sample.user_header_mut() = FrameHeader {
             frame_id,
-            capture_time_ns,
-            width: w as u32,
-            height: h as u32,
-            pixel_format: pixel_format::RGB8,
-            row_stride: (2 * w * 3) as u32,
+            capture_time_ns: info.capture_time_ns,
+            width: geometry.width,
+            height: geometry.height,
+            pixel_format: geometry.format.code(),
+            row_stride: geometry.row_stride() as u32,
         };
+        if let Some(rec) = recorder.as_mut() {
+            rec.record(frame_id, &info, sample.payload())?;
+        }
         sample
             .send()
             .map_err(|e| anyhow!("cannot send frame {frame_id}: {e:?}"))?;
-        send_pose(&truth, pose_msg(frame_id, capture_time_ns, &pose, scene.card.size_mm))?;
-        published_since += 1;
+        if let Some(t) = &info.truth {
+            send_pose(&truth, t.pose_msg(frame_id, info.capture_time_ns))?;
+        }
+        published += 1;
+        since_report += 1;
         if report.elapsed() >= Duration::from_secs(2) {
             tracing::info!(
                 "capture: frame {frame_id}, {:.1} fps",
-                published_since as f64 / report.elapsed().as_secs_f64()
+                since_report as f64 / report.elapsed().as_secs_f64()
             );
             report = Instant::now();
-            published_since = 0;
+            since_report = 0;
         }
+    }
+    tracing::info!("capture: {published} frames published");
+    if let Some(rec) = recorder {
+        let skipped = rec.skipped;
+        let written = rec.finish()?;
+        let dir = args.record.as_deref().unwrap_or(std::path::Path::new("")).display();
+        tracing::info!("capture: recorded {written} frames into {dir} ({skipped} left out: the disk was behind)");
     }
     Ok(())
 }

@@ -1,6 +1,8 @@
 //! The `photopose` command line: one module per subcommand.
 
 pub mod capture;
+pub mod controller;
+pub mod demo;
 pub mod estimate;
 pub mod estimator;
 pub mod model;

@@ -21,7 +21,7 @@ pub struct Projection {
     m: [f32; 9],
     fx: f32,
     fy: f32,
-    /// Principal point in padded texel coordinates.
+    /// Principal point in padded texel coordinates of the lookup region.
     cx: f32,
     cy: f32,
     k: [f32; 5],
@@ -35,8 +35,9 @@ const ROUND: f32 = 8_388_608.0;
 const MIN_DEPTH: f32 = 1e-3;
 
 /// The projection of a model placed at `t` with axes `ax`, `ay` (mm per photo pixel, in
-/// the camera's frame) through `cam` onto the padded image.
-pub fn projection(cam: &Intrinsics, [ax, ay, t]: [&Vector3<f64>; 3]) -> Projection {
+/// the camera's frame) through `cam` onto a padded lookup image whose region starts at
+/// image pixel `origin`.
+pub fn projection(cam: &Intrinsics, origin: (usize, usize), [ax, ay, t]: [&Vector3<f64>; 3]) -> Projection {
     let mut m = [0.0f32; 9];
     for (col, v) in [ax, ay, t].into_iter().enumerate() {
         for row in 0..3 {
@@ -47,8 +48,8 @@ pub fn projection(cam: &Intrinsics, [ax, ay, t]: [&Vector3<f64>; 3]) -> Projecti
         m,
         fx: cam.fx as f32,
         fy: cam.fy as f32,
-        cx: (cam.cx + 1.0) as f32,
-        cy: (cam.cy + 1.0) as f32,
+        cx: (cam.cx + 1.0 - origin.0 as f64) as f32,
+        cy: (cam.cy + 1.0 - origin.1 as f64) as f32,
         k: [cam.k1, cam.k2, cam.p1, cam.p2, cam.k3].map(|k| k as f32),
     }
 }
@@ -248,7 +249,7 @@ mod tests {
     use super::*;
     use crate::color::{hue_distance, is_chromatic};
     use crate::frame::{ColorPlane, PixelColor};
-    use crate::lookup::TARGET_BIT;
+    use crate::lookup::{texel, OUTSIDE_TEXEL, TARGET_BIT};
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
@@ -376,7 +377,24 @@ mod tests {
             },
             rng,
         );
-        LookupImage::new(&colours, |c| c.sat > 128)
+        lookup(&colours, |c| c.sat > 128)
+    }
+
+    /// The lookup image of a whole plane with an arbitrary outer-point verdict.
+    fn lookup(plane: &ColorPlane, target: impl Fn(&PixelColor) -> bool) -> LookupImage {
+        let (w, h) = (plane.width + 2, plane.height + 2);
+        let mut px = vec![OUTSIDE_TEXEL; w * h];
+        for (row, src) in px.chunks_exact_mut(w).skip(1).zip(plane.px.chunks_exact(plane.width)) {
+            for (t, c) in row[1..].iter_mut().zip(src) {
+                *t = texel(c.code, c.sat, target(c));
+            }
+        }
+        LookupImage {
+            width: w,
+            height: h,
+            origin: (0, 0),
+            px,
+        }
     }
 
     #[test]
@@ -388,8 +406,8 @@ mod tests {
         for _ in 0..300 {
             let [ax, ay, t] = placement(&mut rng);
             // The right camera sees the placement shifted by a baseline.
-            let pl = projection(&cam, [&ax, &ay, &t]);
-            let pr = projection(&cam, [&ax, &ay, &(t + Vector3::new(-120.0, 0.0, 0.0))]);
+            let pl = projection(&cam, (0, 0), [&ax, &ay, &t]);
+            let pr = projection(&cam, (0, 0), [&ax, &ay, &(t + Vector3::new(-120.0, 0.0, 0.0))]);
             let fast = count(&pts, [&left, &right], [&pl, &pr], &TOL);
             assert_eq!(fast, reference(&pts, [&left, &right], [&pl, &pr]));
             assert_eq!(count_chunks::<true>(&pts, [&left, &right], [&pl, &pr], &TOL), fast);
@@ -401,7 +419,11 @@ mod tests {
         assert!(seen > 100, "most placements see part of the image: {seen}");
         assert!(confirmed > 50, "some random matches are confirmed: {confirmed}");
         // Identical views confirm exactly the left-image matches.
-        let p = projection(&cam, [&Vector3::x(), &Vector3::y(), &Vector3::new(0.0, 0.0, 300.0)]);
+        let p = projection(
+            &cam,
+            (0, 0),
+            [&Vector3::x(), &Vector3::y(), &Vector3::new(0.0, 0.0, 300.0)],
+        );
         let same = count(&pts, [&left, &left], [&p, &p], &TOL);
         assert_eq!(same.confirmed, same.close[0]);
         assert!(same.confirmed > 0);
@@ -419,7 +441,7 @@ mod tests {
             },
             &mut rng,
         );
-        let img = LookupImage::new(&coords, |_| false);
+        let img = lookup(&coords, |_| false);
         let cam = camera();
         let mut chunk = Chunk {
             idx: [0; CHUNK],
@@ -428,7 +450,7 @@ mod tests {
         let (mut exact, mut total) = (0, 0);
         for _ in 0..200 {
             let [ax, ay, t] = placement(&mut rng);
-            let p = projection(&cam, [&ax, &ay, &t]);
+            let p = projection(&cam, (0, 0), [&ax, &ay, &t]);
             let (xs, ys): (Vec<f32>, Vec<f32>) = (0..CHUNK)
                 .map(|_| (rng.random_range(-150.0..150.0), rng.random_range(-100.0..100.0)))
                 .unzip();
@@ -459,5 +481,63 @@ mod tests {
             exact as f64 >= 0.999 * total as f64,
             "{exact} of {total} on the same pixel"
         );
+    }
+
+    #[test]
+    fn a_region_reads_like_the_whole_image_inside_it_and_outside_beyond() {
+        let mut rng = StdRng::seed_from_u64(7);
+        let coords = plane(
+            |i, _| PixelColor {
+                code: (i % W % 180) as u8,
+                sat: (i / W % 256) as u8,
+                hue: 0,
+            },
+            &mut rng,
+        );
+        let full = lookup(&coords, |_| false);
+        let (cols, rows) = (200..500, 100..250);
+        let mut region = LookupImage {
+            width: cols.len() + 2,
+            height: rows.len() + 2,
+            origin: (cols.start, rows.start),
+            px: vec![OUTSIDE_TEXEL; (cols.len() + 2) * (rows.len() + 2)],
+        };
+        for v in rows.clone() {
+            for u in cols.clone() {
+                region.px[(v - rows.start + 1) * region.width + u - cols.start + 1] =
+                    full.px[(v + 1) * full.width + u + 1];
+            }
+        }
+        let cam = camera();
+        let new = || Chunk {
+            idx: [0; CHUNK],
+            tex: [0; CHUNK],
+        };
+        let (mut a, mut b) = (new(), new());
+        let (mut agree, mut inside, mut total) = (0, 0, 0);
+        for _ in 0..200 {
+            let [ax, ay, t] = placement(&mut rng);
+            let whole_p = projection(&cam, (0, 0), [&ax, &ay, &t]);
+            let part_p = projection(&cam, region.origin, [&ax, &ay, &t]);
+            let (xs, ys): (Vec<f32>, Vec<f32>) = (0..CHUNK)
+                .map(|_| (rng.random_range(-150.0..150.0), rng.random_range(-100.0..100.0)))
+                .unzip();
+            let whole = a.read(&full, &whole_p, &xs, &ys).to_vec();
+            let part = b.read(&region, &part_p, &xs, &ys);
+            for (k, (&w, &p)) in whole.iter().zip(part).enumerate() {
+                let i = a.idx[k] as usize;
+                let (u, v) = ((i % full.width).wrapping_sub(1), (i / full.width).wrapping_sub(1));
+                let want = if cols.contains(&u) && rows.contains(&v) {
+                    inside += 1;
+                    w
+                } else {
+                    OUTSIDE_TEXEL
+                };
+                agree += (p == want) as u32;
+                total += 1;
+            }
+        }
+        assert!(inside > 5_000, "{inside} points in the region");
+        assert!(agree as f64 >= 0.999 * total as f64, "{agree} of {total} agree");
     }
 }

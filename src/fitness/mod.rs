@@ -9,11 +9,10 @@
 use nalgebra::{Isometry3, Matrix3, Point2};
 
 use crate::camera::{Intrinsics, StereoRig};
-use crate::color::ColorClasses;
-use crate::color::{hue_distance, is_chromatic};
+use crate::color::is_chromatic;
 use crate::config::FitnessParams;
-use crate::frame::{FrameLevel, PixelColor, Region};
-use crate::lookup::{LevelLookup, SbsBytes};
+use crate::frame::{FrameLevel, Region};
+use crate::lookup::{LevelLookup, LookupImage, SbsBytes, TexelRule};
 
 mod kernel;
 use crate::model::PhotoModel;
@@ -152,17 +151,30 @@ impl Scorer {
         }
     }
 
+    /// How this scorer's lookup images turn pixel colours into texels.
+    pub fn texel_rule(&self) -> TexelRule {
+        TexelRule {
+            classes: self.params.classes(),
+            outer: self.rule,
+            mean_hue: self.mean_hue,
+            hue_threshold: self.params.outer_hue_threshold,
+            center_code: self.center_code,
+            center_sat: self.center_sat,
+            sat_tolerance: self.sat_tolerance,
+        }
+    }
+
     /// One pyramid level's lookup images for this scorer (once per frame).
     pub fn lookup(&self, level: &FrameLevel) -> LevelLookup {
-        LevelLookup::new(level, |c| self.outer_is_target(c))
+        LevelLookup::new(level, &self.texel_rule())
     }
 
     /// Refills full-resolution lookup images from a frame as it arrived, converting only
     /// the pixels of each eye's region of interest (tracking).
-    pub fn refill(&self, lookup: &mut LevelLookup, frame: &SbsBytes, rois: &[Region; 2], classes: &ColorClasses) {
-        let target = |c: &PixelColor| self.outer_is_target(c);
-        lookup.left.refill(frame, 0, &rois[0], classes, target);
-        lookup.right.refill(frame, 1, &rois[1], classes, target);
+    pub fn refill(&self, lookup: &mut LevelLookup, frame: &SbsBytes, rois: &[Region; 2]) {
+        let rule = self.texel_rule();
+        lookup.left.refill(frame, 0, &rois[0], &rule);
+        lookup.right.refill(frame, 1, &rois[1], &rule);
     }
 
     /// Projections of the candidate into the left and right images, `None` when
@@ -170,18 +182,19 @@ impl Scorer {
     fn placements(&self, level: &LevelLookup, c: &PoseSize) -> Option<[Projection; 2]> {
         let left_from_model = self.left_from_hand * c.hand_from_model();
         let right_from_model = level.rig.right_from_left * left_from_model;
-        let left = self.placement(level, &left_from_model, c, &level.rig.left)?;
-        let right = self.placement(level, &right_from_model, c, &level.rig.right)?;
+        let left = self.placement(&level.left, &left_from_model, c, &level.rig.left, level.scale)?;
+        let right = self.placement(&level.right, &right_from_model, c, &level.rig.right, level.scale)?;
         Some([left, right])
     }
 
     /// The projection into one camera, or `None` per [`Scorer::placements`].
     fn placement(
         &self,
-        level: &LevelLookup,
+        image: &LookupImage,
         cam_from_model: &Isometry3<f64>,
         c: &PoseSize,
         cam: &Intrinsics,
+        scale: f64,
     ) -> Option<Projection> {
         let r: Matrix3<f64> = cam_from_model.rotation.to_rotation_matrix().into_inner();
         let t = cam_from_model.translation.vector;
@@ -190,19 +203,19 @@ impl Scorer {
         let facing = t.dot(&normal) / t.norm().max(1e-9);
         let (ax, ay) = (r.column(0) / c.alpha, r.column(1) / c.beta());
         // Approximate image extent of each model side, in full-resolution pixels.
-        let px = cam.fx / level.scale / t.z.max(1e-9);
+        let px = cam.fx / scale / t.z.max(1e-9);
         let too_small = (ax * self.box_px[0]).norm() * px < self.min_extent_px
             || (ay * self.box_px[1]).norm() * px < self.min_extent_px;
         if facing.is_nan() || facing <= self.min_facing_cos || too_small {
             return None;
         }
-        Some(kernel::projection(cam, [&ax, &ay, &t]))
+        Some(kernel::projection(cam, image.origin, [&ax, &ay, &t]))
     }
 
     /// `F_L` alone (eq. 12): the left image's score, for scans that fix depth later.
     pub fn evaluate_left(&self, points: &PointSet, level: &LevelLookup, c: &PoseSize) -> f64 {
         let left_from_model = self.left_from_hand * c.hand_from_model();
-        let Some(pl) = self.placement(level, &left_from_model, c, &level.rig.left) else {
+        let Some(pl) = self.placement(&level.left, &left_from_model, c, &level.rig.left, level.scale) else {
             return 0.0;
         };
         let (close, background) = kernel::count_left(points, &level.left, &pl, &self.tolerances());
@@ -253,24 +266,6 @@ impl Scorer {
         }
         let (close, background) = (close as f64, background as f64);
         (pr.e1 * close + pr.e2 * (n_inner - close) + pr.e3 * background + pr.e4 * (n_outer - background)) / m
-    }
-
-    /// True when an outer point's pixel looks like the target (eq. 16's `e4` case).
-    fn outer_is_target(&self, px: &PixelColor) -> bool {
-        let threshold = self.params.outer_hue_threshold;
-        let mean_hue = self.mean_hue;
-        match self.rule {
-            OuterRule::RawHue => hue_distance(px.hue, mean_hue) < threshold,
-            OuterRule::ColorClass => {
-                if is_chromatic(self.center_code) {
-                    is_chromatic(px.code)
-                        && hue_distance(px.code, mean_hue) < threshold
-                        && px.sat.abs_diff(self.center_sat) <= self.sat_tolerance
-                } else {
-                    px.code == self.center_code
-                }
-            }
-        }
     }
 
     /// Projected pixel positions of all inner and outer points in the left and right

@@ -151,11 +151,14 @@ pub fn render_into(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Sce
 /// Renders a moving card fast: the scene without card and occluder is rendered once,
 /// and each frame copies it and re-renders only the pixels around the card and
 /// occluder in each eye (on one thread, so a capture process leaves the other cores to
-/// the estimator). Pixel noise is then static outside those regions.
+/// the estimator). Pixel noise is then static outside those regions. Textures and
+/// scratch rows are kept, so a frame allocates nothing.
 pub struct Renderer {
     rig: StereoRig,
     left_from_hand: Isometry3<f64>,
     background: Vec<u8>,
+    textures: Textures,
+    scratch: [Vec<Corner>; 2],
 }
 
 /// Extra pixels around a projected card or occluder (anti-aliased edges).
@@ -168,10 +171,13 @@ impl Renderer {
         empty.occluder = None;
         let mut background = vec![0u8; 2 * rig.width as usize * rig.height as usize * 3];
         render_into(rig, left_from_hand, &empty, &mut background);
+        let corners = || Vec::with_capacity(rig.width as usize + 1);
         Self {
             rig: rig.clone(),
             left_from_hand: *left_from_hand,
             background,
+            textures: Textures::new(scene),
+            scratch: [corners(), corners()],
         }
     }
 
@@ -182,30 +188,100 @@ impl Renderer {
 
     /// Renders `scene` (the same scene as at construction, its card and occluder moved)
     /// into `out` ([`Renderer::frame_len`] bytes).
-    pub fn render_into(&self, scene: &Scene, out: &mut [u8]) {
+    pub fn render_into(&mut self, scene: &Scene, out: &mut [u8]) {
         if out.len() != self.background.len() {
             return;
         }
         out.copy_from_slice(&self.background);
         let left_from_model = self.left_from_hand * scene.card.hand_from_model;
-        let [l, b] = scene.card.size_mm;
-        let mut rects = vec![(left_from_model, [l, b])];
-        if let Some(o) = &scene.occluder {
-            rects.push((o.left_from_occluder, o.size_mm));
-        }
+        let card = (left_from_model, scene.card.size_mm);
+        let occluder = scene.occluder.as_ref().map(|o| (o.left_from_occluder, o.size_mm));
         let (w, h) = (self.rig.width as usize, self.rig.height as usize);
         let eye = |cam_from_left: Isometry3<f64>, cam: &Intrinsics| {
-            let seen = rects
-                .iter()
-                .map(|(left_from_rect, size)| (cam_from_left * left_from_rect, *size));
+            let seen = std::iter::once(card)
+                .chain(occluder)
+                .map(|(left_from_rect, size)| (cam_from_left * left_from_rect, size));
             Region::covering(cam, seen, w, h, |_| REGION_MARGIN_PX)
         };
         let regions = [
             eye(Isometry3::identity(), &self.rig.left),
             eye(self.rig.right_from_left, &self.rig.right),
         ];
-        render_regions(&self.rig, &self.left_from_hand, scene, out, regions, 1);
+        let eyes = eyes(&self.rig, &self.left_from_hand, scene, &self.textures);
+        let [top, bot] = &mut self.scratch;
+        let band = Band {
+            y0: 0,
+            w,
+            sigma: noise_sigma(scene),
+            seed: scene.seed,
+        };
+        for (e, eye) in eyes.iter().enumerate() {
+            eye.render_band(out, &band, e, &regions[e], top, bot);
+        }
     }
+}
+
+/// The card's and occluder's mip-mapped textures.
+struct Textures {
+    card: MipTexture,
+    occluder: Option<MipTexture>,
+}
+
+impl Textures {
+    fn new(scene: &Scene) -> Self {
+        let occluder = match &scene.occluder {
+            Some(Occluder {
+                fill: OccluderFill::Texture(t),
+                ..
+            }) => Some(MipTexture::new(t)),
+            _ => None,
+        };
+        Self {
+            card: MipTexture::new(&scene.card.texture),
+            occluder,
+        }
+    }
+}
+
+/// Both cameras' views of `scene`.
+fn eyes<'a>(
+    rig: &StereoRig,
+    left_from_hand: &Isometry3<f64>,
+    scene: &'a Scene,
+    textures: &'a Textures,
+) -> [Eye<'a>; 2] {
+    let (w, h) = (rig.width as usize, rig.height as usize);
+    let left_from_model = left_from_hand * scene.card.hand_from_model;
+    [
+        Eye::new(
+            rig.left,
+            w,
+            h,
+            &Isometry3::identity(),
+            &left_from_model,
+            scene,
+            textures,
+        ),
+        Eye::new(rig.right, w, h, &rig.right_from_left, &left_from_model, scene, textures),
+    ]
+}
+
+/// The noise level of `scene`, 0 when unset or invalid.
+fn noise_sigma(scene: &Scene) -> f32 {
+    if scene.noise_sigma.is_finite() && scene.noise_sigma > 0.0 {
+        scene.noise_sigma as f32
+    } else {
+        0.0
+    }
+}
+
+/// Rows `y0..` of the side-by-side frame being rendered (a band), frame width `w` per
+/// eye, and the pixel noise.
+struct Band {
+    y0: usize,
+    w: usize,
+    sigma: f32,
+    seed: u64,
 }
 
 /// Renders only `regions` (left, right) of the side-by-side frame in `out`, on up to
@@ -222,58 +298,32 @@ fn render_regions(
     if w == 0 || h == 0 || out.len() != 2 * w * h * 3 {
         return;
     }
-    let card_tex = MipTexture::new(&scene.card.texture);
-    let occ_tex = match &scene.occluder {
-        Some(Occluder {
-            fill: OccluderFill::Texture(t),
-            ..
-        }) => Some(MipTexture::new(t)),
-        _ => None,
-    };
-    let left_from_model = left_from_hand * scene.card.hand_from_model;
-    let eyes = [
-        Eye::new(
-            rig.left,
-            w,
-            h,
-            &Isometry3::identity(),
-            &left_from_model,
-            scene,
-            &card_tex,
-            occ_tex.as_ref(),
-        ),
-        Eye::new(
-            rig.right,
-            w,
-            h,
-            &rig.right_from_left,
-            &left_from_model,
-            scene,
-            &card_tex,
-            occ_tex.as_ref(),
-        ),
-    ];
-    let sigma = if scene.noise_sigma.is_finite() && scene.noise_sigma > 0.0 {
-        scene.noise_sigma as f32
-    } else {
-        0.0
-    };
-
+    let textures = Textures::new(scene);
+    let eyes = eyes(rig, left_from_hand, scene, &textures);
+    let (sigma, seed) = (noise_sigma(scene), scene.seed);
     let threads = threads.clamp(1, 64);
     let band_rows = h.div_ceil(threads * 4).max(1);
     let row_bytes = 2 * w * 3;
     let work = Mutex::new(out.chunks_mut(row_bytes * band_rows).enumerate());
     std::thread::scope(|s| {
         for _ in 0..threads {
-            s.spawn(|| loop {
-                let next = match work.lock() {
-                    Ok(mut it) => it.next(),
-                    Err(_) => None,
-                };
-                let Some((band, chunk)) = next else { break };
-                let y0 = band * band_rows;
-                for (e, eye) in eyes.iter().enumerate() {
-                    eye.render_band(chunk, y0, w, e, &regions[e], sigma, scene.seed);
+            s.spawn(|| {
+                let (mut top, mut bot) = (Vec::new(), Vec::new());
+                loop {
+                    let next = match work.lock() {
+                        Ok(mut it) => it.next(),
+                        Err(_) => None,
+                    };
+                    let Some((band, chunk)) = next else { break };
+                    let band = Band {
+                        y0: band * band_rows,
+                        w,
+                        sigma,
+                        seed,
+                    };
+                    for (e, eye) in eyes.iter().enumerate() {
+                        eye.render_band(chunk, &band, e, &regions[e], &mut top, &mut bot);
+                    }
                 }
             });
         }
@@ -395,21 +445,21 @@ impl Surface<'_> {
 /// wall); the nearest hit wins regardless.
 struct Eye<'a> {
     rays: Arc<RayTable>,
-    surfaces: Vec<Surface<'a>>,
+    /// Occluder, card, wall: the first `n` are set.
+    surfaces: [Option<Surface<'a>>; 3],
 }
 
 const MISS: u8 = u8::MAX;
 
 /// A pixel corner: its ray, the surface it hits (`MISS` = none) and the hit point there.
 #[derive(Debug, Clone, Copy)]
-struct Corner {
+pub(crate) struct Corner {
     ray: Vector3<f64>,
     id: u8,
     xy: [f64; 2],
 }
 
 impl<'a> Eye<'a> {
-    #[allow(clippy::too_many_arguments)]
     fn new(
         cam: Intrinsics,
         w: usize,
@@ -417,10 +467,15 @@ impl<'a> Eye<'a> {
         cam_from_left: &Isometry3<f64>,
         left_from_model: &Isometry3<f64>,
         scene: &'a Scene,
-        card_tex: &'a MipTexture,
-        occ_tex: Option<&'a MipTexture>,
+        textures: &'a Textures,
     ) -> Self {
-        let mut surfaces = Vec::with_capacity(3);
+        let (card_tex, occ_tex) = (&textures.card, textures.occluder.as_ref());
+        let mut surfaces = [None, None, None];
+        let mut n = 0;
+        let mut push = |s: Surface<'a>| {
+            surfaces[n] = Some(s);
+            n += 1;
+        };
         if let Some(o) = &scene.occluder {
             let [sx, sy] = o.size_mm;
             if sx > 0.0 && sy > 0.0 && sx.is_finite() && sy.is_finite() {
@@ -434,7 +489,7 @@ impl<'a> Eye<'a> {
                     (OccluderFill::Solid(c), _) => Look::Solid(c.map(f32::from)),
                     (OccluderFill::Texture(_), None) => Look::Solid([128.0; 3]),
                 };
-                surfaces.push(Surface {
+                push(Surface {
                     plane: Plane::new(&(cam_from_left * o.left_from_occluder)),
                     half: Some([0.5 * sx, 0.5 * sy]),
                     look,
@@ -461,7 +516,7 @@ impl<'a> Eye<'a> {
             } else {
                 1.0
             };
-            surfaces.push(Surface {
+            push(Surface {
                 plane,
                 half: Some([0.5 * l, 0.5 * b]),
                 look,
@@ -474,7 +529,7 @@ impl<'a> Eye<'a> {
             Translation3::new(0.0, 0.0, bg.distance_mm()),
             UnitQuaternion::identity(),
         );
-        surfaces.push(Surface {
+        push(Surface {
             plane: Plane::new(&(cam_from_left * wall)),
             half: None,
             look: Look::Tex {
@@ -491,11 +546,15 @@ impl<'a> Eye<'a> {
         }
     }
 
+    fn surface(&self, k: usize) -> Option<&Surface<'a>> {
+        self.surfaces.get(k).and_then(Option::as_ref)
+    }
+
     /// Nearest surface hit by ray `d`: `(surface index, x, y)`.
     #[inline]
     fn trace(&self, d: &Vector3<f64>) -> Option<(usize, f64, f64)> {
         let mut best: Option<(usize, f64, f64, f64)> = None;
-        for (k, s) in self.surfaces.iter().enumerate() {
+        for (k, s) in self.surfaces.iter().flatten().enumerate() {
             if let Some((lam, x, y)) = s.hit(d) {
                 if best.is_none_or(|b| lam < b.1) {
                     best = Some((k, lam, x, y));
@@ -518,8 +577,18 @@ impl<'a> Eye<'a> {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn render_band(&self, chunk: &mut [u8], y0: usize, w: usize, eye: usize, region: &Region, sigma: f32, seed: u64) {
+    /// Renders `region` of this eye (`eye` 0 left, 1 right) within the rows of `chunk`,
+    /// a band of the side-by-side frame; `top` and `bot` are scratch rows.
+    fn render_band(
+        &self,
+        chunk: &mut [u8],
+        band: &Band,
+        eye: usize,
+        region: &Region,
+        top: &mut Vec<Corner>,
+        bot: &mut Vec<Corner>,
+    ) {
+        let Band { y0, w, sigma, seed } = *band;
         let row_bytes = 2 * w * 3;
         let rows = chunk.len() / row_bytes;
         let (c0, c1) = (region.cols.start.min(w), region.cols.end.min(w));
@@ -532,8 +601,10 @@ impl<'a> Eye<'a> {
             id: MISS,
             xy: [0.0; 2],
         };
-        let mut top = vec![blank; w + 1];
-        let mut bot = vec![blank; w + 1];
+        for row in [&mut *top, &mut *bot] {
+            row.clear();
+            row.resize(w + 1, blank);
+        }
         self.corner_row(r0, &mut top[c0..=c1], c0);
         for j in r0..r1 {
             let r = j - y0;
@@ -546,7 +617,7 @@ impl<'a> Eye<'a> {
                 let id = q[0].id;
                 let c = if id == q[1].id && id == q[2].id && id == q[3].id {
                     // One surface under the whole pixel (it is convex): shade its centre.
-                    match self.surfaces.get(id as usize) {
+                    match self.surface(id as usize) {
                         Some(s) => {
                             let d = blend(&corners, 0.5, 0.5);
                             match s.plane.intersect(&d) {
@@ -567,7 +638,7 @@ impl<'a> Eye<'a> {
                     row[o + k] = to_u8(c[k] + noise.next());
                 }
             }
-            std::mem::swap(&mut top, &mut bot);
+            std::mem::swap(top, bot);
         }
     }
 
@@ -581,8 +652,7 @@ impl<'a> Eye<'a> {
             for a in 0..N {
                 let fu = (a as f64 + 0.5) / N as f64;
                 let d = blend(corners, fu, fv);
-                if let Some((k, x, y)) = self.trace(&d) {
-                    let s = &self.surfaces[k];
+                if let Some((k, x, y, s)) = self.trace(&d).and_then(|(k, x, y)| Some((k, x, y, self.surface(k)?))) {
                     let fp = match footprints.get_mut(k) {
                         Some(f) => {
                             if f.is_nan() {

@@ -375,7 +375,7 @@ fn incremental_frames_equal_full_renders() {
     scene.card.texture = RgbImage::from_fn(40, 30, |x, y| Rgb([6 * x as u8, 8 * y as u8, 90]));
     scene.background = Background::collage(&[], 5, 1500.0);
     scene.occluder = Occluder::covering(&lfm, [120.0, 90.0], 0.2, OccluderFill::Solid([9, 200, 9]), 3);
-    let renderer = Renderer::new(&rig, &left_from_hand(), &scene);
+    let mut renderer = Renderer::new(&rig, &left_from_hand(), &scene);
     let mut out = vec![0u8; renderer.frame_len()];
     for step in 0..3 {
         let moved = pose(
@@ -405,7 +405,7 @@ fn incremental_hd_timing() {
     let lfm = pose([0.0, 0.0, 650.0], [0.2, 0.3, 0.1]);
     let mut scene = scene_with(lfm, RED, [180.0, 160.0]);
     scene.background = Background::collage(&[], 7, 1500.0);
-    let renderer = Renderer::new(&rig, &Isometry3::identity(), &scene);
+    let mut renderer = Renderer::new(&rig, &Isometry3::identity(), &scene);
     let mut out = vec![0u8; renderer.frame_len()];
     let t = std::time::Instant::now();
     let n = 30;

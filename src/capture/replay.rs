@@ -1,0 +1,179 @@
+//! `replay:DIR`: plays a recorded [`Sequence`] as a camera would, at its recorded pace or
+//! a fixed rate, optionally looping. A reader thread decodes frames ahead into a few
+//! recycled buffers; each due frame is copied into the caller's buffer.
+
+use std::fs::File;
+use std::io::{BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crossbeam::channel::{bounded, Receiver, Sender};
+use image::codecs::png::PngDecoder;
+use image::{ColorType, ImageDecoder};
+
+use super::sequence::{due_offset, Sequence};
+use super::{FrameInfo, FrameSource, Geometry, SourceError, Truth};
+use crate::messages::{monotonic_ns, PixelFormat};
+
+/// Frames decoded ahead of playback.
+const AHEAD: usize = 4;
+
+/// A decoded frame: its index in the sequence and its bytes.
+type Decoded = Result<(usize, Vec<u8>), SourceError>;
+
+/// A recorded sequence as a frame source.
+pub struct ReplaySource {
+    dir: PathBuf,
+    geometry: Geometry,
+    times: Vec<u64>,
+    truth: Vec<Option<Truth>>,
+    fps: Option<f64>,
+    looping: bool,
+    start: Instant,
+    /// Frames played so far (over all passes).
+    played: u64,
+    decoded: Receiver<Decoded>,
+    recycle: Sender<Vec<u8>>,
+}
+
+impl ReplaySource {
+    /// Opens `dir`; `fps` overrides the recorded pace.
+    pub fn open(dir: &Path, fps: Option<f64>, looping: bool) -> Result<Self, SourceError> {
+        let seq = Sequence::open(dir)?;
+        let geometry = seq.geometry;
+        let (recycle, free) = bounded(AHEAD);
+        for _ in 0..AHEAD {
+            // Cannot fail: the channel has room for every buffer.
+            let _ = recycle.send(vec![0u8; geometry.frame_len()]);
+        }
+        let (tx, decoded) = bounded(AHEAD);
+        let times = seq.times();
+        let truth = seq.frames.iter().map(|f| f.truth).collect();
+        let reader = seq.clone();
+        std::thread::Builder::new()
+            .name("photopose-replay".into())
+            .spawn(move || read_ahead(&reader, looping, &free, &tx))
+            .map_err(|e| SourceError::Setup(format!("cannot start the replay reader: {e}")))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            geometry,
+            times,
+            truth,
+            fps,
+            looping,
+            start: Instant::now(),
+            played: 0,
+            decoded,
+            recycle,
+        })
+    }
+}
+
+/// Decodes the sequence's frames in order (forever when looping) into free buffers until
+/// the player goes away or a frame cannot be read (that error is passed on).
+fn read_ahead(seq: &Sequence, looping: bool, free: &Receiver<Vec<u8>>, out: &Sender<Decoded>) {
+    loop {
+        for (i, rec) in seq.frames.iter().enumerate() {
+            let Ok(mut buf) = free.recv() else { return };
+            let path = seq.dir.join(&rec.file);
+            let result = read_frame(&path, seq.geometry, &mut buf).map(|()| (i, buf));
+            let failed = result.is_err();
+            if out.send(result).is_err() || failed {
+                return;
+            }
+        }
+        if !looping {
+            return;
+        }
+    }
+}
+
+/// Reads one frame file into `buf` ([`Geometry::frame_len`] bytes).
+fn read_frame(path: &Path, geometry: Geometry, buf: &mut [u8]) -> Result<(), SourceError> {
+    let problem = |message: String| SourceError::Frame {
+        path: path.to_path_buf(),
+        message,
+    };
+    let file = File::open(path).map_err(|e| problem(e.to_string()))?;
+    match geometry.format {
+        PixelFormat::Rgb8 => {
+            let decoder = PngDecoder::new(BufReader::new(file)).map_err(|e| problem(e.to_string()))?;
+            let (w, h) = decoder.dimensions();
+            if (w, h) != (2 * geometry.width, geometry.height) || decoder.color_type() != ColorType::Rgb8 {
+                return Err(problem(format!(
+                    "{w}x{h} {:?} image, expected a {}x{} RGB8 side-by-side frame",
+                    decoder.color_type(),
+                    2 * geometry.width,
+                    geometry.height
+                )));
+            }
+            decoder.read_image(buf).map_err(|e| problem(e.to_string()))
+        }
+        PixelFormat::Yuyv => {
+            let len = file.metadata().map_err(|e| problem(e.to_string()))?.len();
+            if len != buf.len() as u64 {
+                return Err(problem(format!(
+                    "{len} bytes, expected {} for a {}x{} YUYV side-by-side frame",
+                    buf.len(),
+                    2 * geometry.width,
+                    geometry.height
+                )));
+            }
+            BufReader::new(file).read_exact(buf).map_err(|e| problem(e.to_string()))
+        }
+    }
+}
+
+impl FrameSource for ReplaySource {
+    fn geometry(&self) -> Geometry {
+        self.geometry
+    }
+
+    fn describe(&self) -> String {
+        let pace = match self.fps {
+            Some(fps) => format!("{fps} fps"),
+            None => "the recorded pace".into(),
+        };
+        format!(
+            "replay of {} ({} frames, {}x{} {} per eye) at {pace}{}",
+            self.dir.display(),
+            self.times.len(),
+            self.geometry.width,
+            self.geometry.height,
+            self.geometry.format.name(),
+            if self.looping { ", looping" } else { "" }
+        )
+    }
+
+    fn next_due(&mut self) -> Option<Instant> {
+        if !self.looping && self.played >= self.times.len() as u64 {
+            return None;
+        }
+        if self.played == 0 {
+            self.start = Instant::now();
+        }
+        Some(self.start + due_offset(&self.times, self.played, self.fps))
+    }
+
+    fn fill(&mut self, buf: &mut [u8]) -> Result<Option<FrameInfo>, SourceError> {
+        let (index, bytes) = self
+            .decoded
+            .recv()
+            .map_err(|_| SourceError::Setup(format!("the replay reader of {} stopped", self.dir.display())))??;
+        let Some(out) = buf.get_mut(..bytes.len()) else {
+            return Err(SourceError::Setup(format!(
+                "a {}-byte buffer cannot hold a {}-byte frame",
+                buf.len(),
+                bytes.len()
+            )));
+        };
+        out.copy_from_slice(&bytes);
+        // The reader may be gone after the last frame; the buffer is then not needed.
+        let _ = self.recycle.send(bytes);
+        self.played += 1;
+        Ok(Some(FrameInfo {
+            capture_time_ns: monotonic_ns(),
+            truth: self.truth[index],
+        }))
+    }
+}

@@ -1,0 +1,391 @@
+//! Recorded sequences: what `photopose capture --record DIR` writes and `replay:DIR`
+//! plays.
+//!
+//! ```text
+//! DIR/sequence.toml   format = "photopose-sequence", version = 1,
+//!                     width, height (per eye), pixel_format = "RGB8" | "YUYV",
+//!                     source (what was recorded, informational)
+//! DIR/frames.csv      one line per frame after a header line:
+//!                     frame_id,capture_time_ns,file,x_mm,y_mm,z_mm,qw,qx,qy,qz,l_mm,b_mm
+//!                     (the ground-truth pose and size in the hand frame; the last nine
+//!                     fields are empty when the truth is unknown)
+//! DIR/<file>          one side-by-side frame: `.png` (RGB8, 2·width × height) or
+//!                     `.yuyv` (raw YUYV rows of 4·width bytes, as the camera sent them)
+//! ```
+//! Times are CLOCK_MONOTONIC nanoseconds of the recording; replay uses their
+//! differences for pacing ([`due_offset`]).
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+
+use super::{Geometry, Truth};
+use crate::messages::PixelFormat;
+
+/// Format tag and version of `sequence.toml`.
+pub const FORMAT: &str = "photopose-sequence";
+pub const VERSION: u32 = 1;
+/// File names inside a sequence directory.
+pub const INFO_FILE: &str = "sequence.toml";
+pub const FRAMES_FILE: &str = "frames.csv";
+/// Header line of [`FRAMES_FILE`].
+pub const CSV_HEADER: &str = "frame_id,capture_time_ns,file,x_mm,y_mm,z_mm,qw,qx,qy,qz,l_mm,b_mm";
+
+/// A sequence directory that cannot be read or written; one line naming the file.
+#[derive(Debug, thiserror::Error)]
+pub enum SequenceError {
+    #[error("cannot read {path}: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("cannot write {path}: {source}")]
+    Write { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+    #[error("{path}:{line}: {message}")]
+    Line {
+        path: PathBuf,
+        line: usize,
+        message: String,
+    },
+    #[error("{path} already holds a recording; choose a new directory")]
+    Exists { path: PathBuf },
+}
+
+/// `sequence.toml`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SequenceInfo {
+    pub format: String,
+    pub version: u32,
+    /// Size of one eye, pixels.
+    pub width: u32,
+    pub height: u32,
+    pub pixel_format: String,
+    #[serde(default)]
+    pub source: String,
+}
+
+impl SequenceInfo {
+    pub fn new(geometry: Geometry, source: &str) -> Self {
+        Self {
+            format: FORMAT.into(),
+            version: VERSION,
+            width: geometry.width,
+            height: geometry.height,
+            pixel_format: geometry.format.name().into(),
+            source: source.into(),
+        }
+    }
+
+    /// The frame layout, checked.
+    pub fn geometry(&self, path: &Path) -> Result<Geometry, SequenceError> {
+        let invalid = |message: String| SequenceError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        };
+        if self.format != FORMAT {
+            return Err(invalid(format!("format is {:?}, expected {FORMAT:?}", self.format)));
+        }
+        if self.version != VERSION {
+            return Err(invalid(format!(
+                "version {} is not supported (this build reads {VERSION})",
+                self.version
+            )));
+        }
+        let format = PixelFormat::parse(&self.pixel_format).ok_or_else(|| {
+            invalid(format!(
+                "pixel_format {:?}: use \"RGB8\" or \"YUYV\"",
+                self.pixel_format
+            ))
+        })?;
+        if self.width == 0 || self.height == 0 || self.width > 8192 || self.height > 8192 {
+            return Err(invalid(format!(
+                "frame size {}x{} per eye is not usable",
+                self.width, self.height
+            )));
+        }
+        Ok(Geometry {
+            width: self.width,
+            height: self.height,
+            format,
+        })
+    }
+}
+
+/// One line of `frames.csv`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameRecord {
+    pub frame_id: u64,
+    pub capture_time_ns: u64,
+    /// File name inside the sequence directory.
+    pub file: String,
+    pub truth: Option<Truth>,
+}
+
+impl FrameRecord {
+    /// The CSV line (no newline).
+    pub fn to_csv(&self) -> String {
+        let truth = match &self.truth {
+            Some(t) => {
+                let p = t.hand_from_model.translation.vector;
+                let q = t.hand_from_model.rotation.into_inner();
+                let s = if q.w < 0.0 { -1.0 } else { 1.0 };
+                format!(
+                    "{},{},{},{},{},{},{},{},{}",
+                    p.x,
+                    p.y,
+                    p.z,
+                    s * q.w,
+                    s * q.i,
+                    s * q.j,
+                    s * q.k,
+                    t.size_mm[0],
+                    t.size_mm[1]
+                )
+            }
+            None => ",,,,,,,,".into(),
+        };
+        format!("{},{},{},{truth}", self.frame_id, self.capture_time_ns, self.file)
+    }
+
+    /// Parses one CSV line; the message says what is wrong.
+    pub fn parse(line: &str) -> Result<Self, String> {
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() != 12 {
+            return Err(format!("expected 12 comma-separated fields, found {}", fields.len()));
+        }
+        let int = |i: usize, name: &str| {
+            fields[i]
+                .parse::<u64>()
+                .map_err(|_| format!("{name} {:?} is not a non-negative integer", fields[i]))
+        };
+        let (frame_id, capture_time_ns) = (int(0, "frame_id")?, int(1, "capture_time_ns")?);
+        let file = fields[2];
+        if file.is_empty() || file.contains('/') || file.contains('\\') || file.starts_with('.') {
+            return Err(format!(
+                "file {file:?} must be a plain file name in the sequence directory"
+            ));
+        }
+        let truth = if fields[3..].iter().all(|f| f.is_empty()) {
+            None
+        } else {
+            let mut v = [0.0; 9];
+            for (k, x) in v.iter_mut().enumerate() {
+                *x = fields[3 + k]
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| format!("truth field {} {:?} is not a finite number", 4 + k, fields[3 + k]))?;
+            }
+            let q = Quaternion::new(v[3], v[4], v[5], v[6]);
+            if (q.norm() - 1.0).abs() > 1e-3 {
+                return Err(format!("truth quaternion has norm {:.4}, not 1", q.norm()));
+            }
+            if v[7] <= 0.0 || v[8] <= 0.0 {
+                return Err("truth size must be positive".into());
+            }
+            Some(Truth {
+                hand_from_model: Isometry3::from_parts(
+                    Translation3::from(Vector3::new(v[0], v[1], v[2])),
+                    UnitQuaternion::from_quaternion(q),
+                ),
+                size_mm: [v[7], v[8]],
+            })
+        };
+        Ok(Self {
+            frame_id,
+            capture_time_ns,
+            file: file.to_string(),
+            truth,
+        })
+    }
+}
+
+/// A sequence directory's description and frame list.
+#[derive(Debug, Clone)]
+pub struct Sequence {
+    pub dir: PathBuf,
+    pub info: SequenceInfo,
+    pub geometry: Geometry,
+    pub frames: Vec<FrameRecord>,
+}
+
+impl Sequence {
+    /// Reads and checks `DIR/sequence.toml` and `DIR/frames.csv` (not the frames).
+    pub fn open(dir: &Path) -> Result<Self, SequenceError> {
+        let info_path = dir.join(INFO_FILE);
+        let text = std::fs::read_to_string(&info_path).map_err(|source| SequenceError::Read {
+            path: info_path.clone(),
+            source,
+        })?;
+        let info: SequenceInfo = toml::from_str(&text).map_err(|e| SequenceError::Invalid {
+            path: info_path.clone(),
+            message: e.message().replace('\n', "; "),
+        })?;
+        let geometry = info.geometry(&info_path)?;
+        let csv_path = dir.join(FRAMES_FILE);
+        let text = std::fs::read_to_string(&csv_path).map_err(|source| SequenceError::Read {
+            path: csv_path.clone(),
+            source,
+        })?;
+        let line_error = |line: usize, message: String| SequenceError::Line {
+            path: csv_path.clone(),
+            line,
+            message,
+        };
+        let mut lines = text.lines().enumerate();
+        match lines.next() {
+            Some((_, h)) if h.trim() == CSV_HEADER => {}
+            _ => return Err(line_error(1, format!("the first line must be the header {CSV_HEADER}"))),
+        }
+        let mut frames: Vec<FrameRecord> = Vec::new();
+        for (i, line) in lines.filter(|(_, l)| !l.trim().is_empty()) {
+            let rec = FrameRecord::parse(line).map_err(|m| line_error(i + 1, m))?;
+            if let Some(prev) = frames.last() {
+                if rec.capture_time_ns < prev.capture_time_ns {
+                    return Err(line_error(i + 1, "capture times must not decrease".into()));
+                }
+            }
+            frames.push(rec);
+        }
+        if frames.is_empty() {
+            return Err(line_error(1, "the sequence has no frames".into()));
+        }
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            info,
+            geometry,
+            frames,
+        })
+    }
+
+    /// Recorded capture times, ns.
+    pub fn times(&self) -> Vec<u64> {
+        self.frames.iter().map(|f| f.capture_time_ns).collect()
+    }
+}
+
+/// When frame `n` of playback is due, after the start of playback: at `fps` when given,
+/// else at the recorded pace. Past the last frame playback loops: each pass lasts the
+/// recording's span plus one mean frame period.
+pub fn due_offset(times: &[u64], n: u64, fps: Option<f64>) -> Duration {
+    if let Some(fps) = fps.filter(|f| f.is_finite() && *f > 0.0) {
+        return Duration::from_secs_f64(n as f64 / fps);
+    }
+    let (Some(&first), Some(&last)) = (times.first(), times.last()) else {
+        return Duration::ZERO;
+    };
+    let len = times.len() as u64;
+    let span = last.saturating_sub(first);
+    let period = if len > 1 { span / (len - 1) } else { 0 };
+    let (pass, i) = (n / len, (n % len) as usize);
+    Duration::from_nanos(pass * (span + period) + (times[i] - first))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_round_trip_through_csv() {
+        let truth = Truth {
+            hand_from_model: Isometry3::from_parts(
+                Translation3::new(40.0, -20.0, 650.0),
+                UnitQuaternion::from_euler_angles(0.5, 0.1, -0.2),
+            ),
+            size_mm: [180.0, 159.0],
+        };
+        for truth in [Some(truth), None] {
+            let rec = FrameRecord {
+                frame_id: 7,
+                capture_time_ns: 123_456_789,
+                file: "000007.png".into(),
+                truth,
+            };
+            let back = FrameRecord::parse(&rec.to_csv()).unwrap();
+            assert_eq!(
+                (back.frame_id, back.capture_time_ns, &back.file),
+                (7, 123_456_789, &rec.file)
+            );
+            match (back.truth, truth) {
+                (Some(a), Some(b)) => {
+                    assert!(
+                        (a.hand_from_model.translation.vector - b.hand_from_model.translation.vector).norm() < 1e-9
+                    );
+                    assert!(a.hand_from_model.rotation.angle_to(&b.hand_from_model.rotation) < 1e-9);
+                    assert_eq!(a.size_mm, b.size_mm);
+                }
+                (None, None) => {}
+                other => panic!("truth changed: {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn bad_lines_say_what_is_wrong() {
+        for (line, needle) in [
+            ("1,2,a.png", "12 comma-separated"),
+            ("x,2,a.png,,,,,,,,,", "frame_id"),
+            ("1,-2,a.png,,,,,,,,,", "capture_time_ns"),
+            ("1,2,../a.png,,,,,,,,,", "plain file name"),
+            ("1,2,a.png,1,2,3,1,0,0,0,10,nan", "finite"),
+            ("1,2,a.png,1,2,3,2,0,0,0,10,10", "norm"),
+            ("1,2,a.png,1,2,3,1,0,0,0,0,10", "positive"),
+        ] {
+            let e = FrameRecord::parse(line).unwrap_err();
+            assert!(e.contains(needle), "{line}: {e}");
+        }
+    }
+
+    #[test]
+    fn pacing_follows_the_recording_or_a_fixed_rate_and_loops() {
+        let times = [1_000, 21_000, 41_000];
+        let d = |n| due_offset(&times, n, None).as_nanos();
+        assert_eq!([d(0), d(1), d(2)], [0, 20_000, 40_000]);
+        // The second pass starts one mean period after the last frame.
+        assert_eq!([d(3), d(4), d(5)], [60_000, 80_000, 100_000]);
+        assert_eq!(due_offset(&times, 4, Some(100.0)), Duration::from_millis(40));
+        assert_eq!(due_offset(&[5], 3, None), Duration::ZERO);
+        assert_eq!(due_offset(&[], 3, None), Duration::ZERO);
+    }
+
+    #[test]
+    fn sequence_files_are_checked() {
+        let dir = std::env::temp_dir().join(format!("photopose-seq-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let e = Sequence::open(&dir).unwrap_err().to_string();
+        assert!(e.contains("sequence.toml"), "{e}");
+        let info = SequenceInfo::new(
+            Geometry {
+                width: 4,
+                height: 2,
+                format: PixelFormat::Yuyv,
+            },
+            "test",
+        );
+        std::fs::write(dir.join(INFO_FILE), toml::to_string(&info).unwrap()).unwrap();
+        std::fs::write(dir.join(FRAMES_FILE), "frame,time\n").unwrap();
+        let e = Sequence::open(&dir).unwrap_err().to_string();
+        assert!(e.contains("frames.csv:1") && e.contains("header"), "{e}");
+        std::fs::write(
+            dir.join(FRAMES_FILE),
+            format!("{CSV_HEADER}\n0,100,a.yuyv,,,,,,,,,\n1,50,b.yuyv,,,,,,,,,\n"),
+        )
+        .unwrap();
+        let e = Sequence::open(&dir).unwrap_err().to_string();
+        assert!(e.contains("frames.csv:3") && e.contains("decrease"), "{e}");
+        std::fs::write(dir.join(FRAMES_FILE), format!("{CSV_HEADER}\n0,100,a.yuyv,,,,,,,,,\n")).unwrap();
+        let seq = Sequence::open(&dir).unwrap();
+        assert_eq!(seq.geometry.frame_len(), 2 * 4 * 2 * 2);
+        std::fs::write(
+            dir.join(INFO_FILE),
+            "format = \"photopose-sequence\"\nversion = 9\nwidth = 4\nheight = 2\npixel_format = \"RGB8\"\n",
+        )
+        .unwrap();
+        let e = Sequence::open(&dir).unwrap_err().to_string();
+        assert!(e.contains("sequence.toml") && e.contains("version 9"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

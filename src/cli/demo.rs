@@ -1,0 +1,390 @@
+//! `photopose demo`: the whole service on the synthetic camera. It builds the photo-model
+//! of the scene's photo, starts `capture` (a card moving along a loop), `estimator` and
+//! `controller` as three processes, watches `photopose/poses` against
+//! `photopose/truth` with a live status line, then stops them and prints a summary and
+//! writes a plot of the true and estimated trajectories.
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader, IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context, Result};
+
+use crate::capture::DEFAULT_SCENE;
+use crate::config::Config;
+use crate::frame::load_rgb;
+use crate::ipc::Ipc;
+use crate::messages::{monotonic_ns, status, PoseMsg, POSES_SERVICE, TRUTH_SERVICE};
+use crate::model::PhotoModel;
+use crate::plot::{self, Panel, Series, PALETTE};
+use crate::render::SceneSpec;
+use crate::stats::Samples;
+
+/// Run capture, estimator and controller together on the synthetic camera.
+#[derive(clap::Args, Debug)]
+pub struct DemoArgs {
+    /// How long to run, seconds.
+    #[arg(long, default_value_t = 20.0)]
+    pub seconds: f64,
+    /// Scene of the synthetic camera (its photo becomes the photo-model).
+    #[arg(long, value_name = "SCENE.toml", default_value = DEFAULT_SCENE)]
+    pub scene: PathBuf,
+    /// Peak speed of the card, mm/s.
+    #[arg(long, default_value_t = 150.0)]
+    pub speed: f64,
+    /// Camera frame rate.
+    #[arg(long, default_value_t = 60.0)]
+    pub fps: f64,
+    /// Where to write the trajectory plot.
+    #[arg(long, value_name = "FILE.png", default_value = "demo-trajectory.png")]
+    pub plot: PathBuf,
+    /// Configuration file passed to every process; built-in defaults otherwise.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+}
+
+pub fn run(args: &DemoArgs) -> Result<()> {
+    if !(args.seconds.is_finite() && args.seconds > 0.0) {
+        return Err(anyhow!("--seconds {} must be a positive number", args.seconds));
+    }
+    let config = Config::load(args.config.as_deref())?;
+    let spec = SceneSpec::load(&args.scene)?;
+    let model_path = std::env::temp_dir().join(format!("photopose-demo-{}.model", std::process::id()));
+    build_model(&spec, &config, &model_path)?;
+    let ipc = Ipc::new("photopose-demo")?;
+    let poses = ipc.pose_subscriber(POSES_SERVICE)?;
+    let truths = ipc.pose_subscriber(TRUTH_SERVICE)?;
+
+    let exe = std::env::current_exe().context("cannot find the photopose executable")?;
+    // The children also stop by themselves, should the demo be killed.
+    let limit = format!("{}", args.seconds + 10.0);
+    let mut common: Vec<String> = Vec::new();
+    if let Some(c) = &args.config {
+        common.extend(["--config".into(), c.display().to_string()]);
+    }
+    let mut procs = Processes::default();
+    procs.spawn(
+        &exe,
+        "estimator",
+        &[&["--model", &model_path.display().to_string(), "--seconds", &limit]],
+        &common,
+        false,
+    )?;
+    let scene = format!("synthetic:{}", args.scene.display());
+    let (speed, fps) = (args.speed.to_string(), args.fps.to_string());
+    procs.spawn(
+        &exe,
+        "capture",
+        &[&[
+            "--source",
+            &scene,
+            "--speed",
+            &speed,
+            "--fps",
+            &fps,
+            "--seconds",
+            &limit,
+        ]],
+        &common,
+        false,
+    )?;
+    let controller_line = procs.spawn(&exe, "controller", &[&["--seconds", &limit]], &common, true)?;
+
+    println!(
+        "photopose demo: {} at up to {} mm/s, {} fps, for {} s (Ctrl-C stops early)",
+        args.scene.display(),
+        args.speed,
+        args.fps,
+        args.seconds
+    );
+    let mut run = Record::default();
+    let start = Instant::now();
+    let live = std::io::stderr().is_terminal();
+    let mut shown = Instant::now();
+    while ipc.wait(Duration::from_millis(5)) && start.elapsed().as_secs_f64() < args.seconds {
+        let now = monotonic_ns();
+        while let Some(s) = truths.receive().map_err(|e| anyhow!("cannot receive truth: {e:?}"))? {
+            run.truth.insert(s.payload().frame_id, *s.payload());
+        }
+        while let Some(s) = poses.receive().map_err(|e| anyhow!("cannot receive a pose: {e:?}"))? {
+            run.poses.push((*s.payload(), now));
+        }
+        if let Some(line) = procs.exited() {
+            return Err(anyhow!("{line}; see its message above"));
+        }
+        let every = if live { 250 } else { 2000 };
+        if shown.elapsed() >= Duration::from_millis(every) {
+            shown = Instant::now();
+            let controller = controller_line
+                .as_ref()
+                .map(|l| l.lock().map(|s| s.clone()).unwrap_or_default());
+            run.status(start.elapsed().as_secs_f64(), controller.as_deref(), live);
+        }
+    }
+    if live {
+        eprintln!();
+    }
+    procs.stop();
+    drop((poses, truths));
+    let _ = std::fs::remove_file(&model_path);
+    let summary = run.summary();
+    println!("{summary}");
+    let plot = run.plot();
+    plot::save(&plot, &args.plot)?;
+    println!("trajectory plot: {}", args.plot.display());
+    Ok(())
+}
+
+/// Writes the photo-model of the scene's photo and box to `path` for the estimator.
+fn build_model(spec: &SceneSpec, config: &Config, path: &Path) -> Result<()> {
+    let photo = load_rgb(&spec.photo)?;
+    let [x, y, w, h] = spec.box_px.map(i64::from);
+    let model = PhotoModel::build(
+        &photo,
+        &spec.photo,
+        [x, y, w, h],
+        &config.model,
+        &config.fitness.classes(),
+    )?;
+    Ok(model.save(path)?)
+}
+
+/// The child processes, stopped (SIGTERM, then SIGKILL) when dropped.
+#[derive(Default)]
+struct Processes {
+    children: Vec<(String, Child)>,
+}
+
+impl Processes {
+    /// Starts `photopose <command> <args…> <common…>`; with `watch`, its last stdout line
+    /// is kept in the returned slot.
+    fn spawn(
+        &mut self,
+        exe: &Path,
+        command: &str,
+        args: &[&[&str]],
+        common: &[String],
+        watch: bool,
+    ) -> Result<Option<Arc<Mutex<String>>>> {
+        let mut cmd = Command::new(exe);
+        cmd.arg(command).args(args.iter().flat_map(|a| a.iter())).args(common);
+        if std::env::var_os("RUST_LOG").is_none() {
+            cmd.env("RUST_LOG", "warn");
+        }
+        cmd.stdin(Stdio::null())
+            .stdout(if watch { Stdio::piped() } else { Stdio::null() });
+        let mut child = cmd
+            .spawn()
+            .with_context(|| format!("cannot start photopose {command}"))?;
+        let slot = match child.stdout.take() {
+            Some(out) => {
+                let slot = Arc::new(Mutex::new(String::new()));
+                let writer = slot.clone();
+                std::thread::Builder::new()
+                    .name(format!("photopose-demo-{command}"))
+                    .spawn(move || {
+                        for line in BufReader::new(out).lines().map_while(Result::ok) {
+                            if let Ok(mut s) = writer.lock() {
+                                *s = line;
+                            }
+                        }
+                    })
+                    .context("cannot start a reader thread")?;
+                Some(slot)
+            }
+            None => None,
+        };
+        self.children.push((command.to_string(), child));
+        Ok(slot)
+    }
+
+    /// A line naming a child that has exited, if any.
+    fn exited(&mut self) -> Option<String> {
+        self.children.iter_mut().find_map(|(name, c)| match c.try_wait() {
+            Ok(Some(status)) => Some(format!("photopose {name} stopped ({status})")),
+            _ => None,
+        })
+    }
+
+    /// Asks every child to terminate, waits up to 3 s, then kills what is left.
+    fn stop(&mut self) {
+        for (_, c) in &self.children {
+            // SAFETY: sending a signal to a child process id we own has no memory effects.
+            unsafe { libc::kill(c.id() as libc::pid_t, libc::SIGTERM) };
+        }
+        let deadline = Instant::now() + Duration::from_secs(3);
+        for (name, c) in &mut self.children {
+            while Instant::now() < deadline {
+                if let Ok(Some(_)) = c.try_wait() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            if let Ok(None) = c.try_wait() {
+                tracing::warn!("photopose {name} did not stop; killing it");
+                let _ = c.kill();
+                let _ = c.wait();
+            }
+        }
+        self.children.clear();
+    }
+}
+
+impl Drop for Processes {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+/// What the demo saw: the truth of every frame and every pose with the time it arrived.
+#[derive(Default)]
+struct Record {
+    truth: BTreeMap<u64, PoseMsg>,
+    poses: Vec<(PoseMsg, u64)>,
+}
+
+/// Position error of a pose against the truth of its frame, mm.
+fn position_error(p: &PoseMsg, t: &PoseMsg) -> f64 {
+    (0..3)
+        .map(|i| (p.position_mm[i] - t.position_mm[i]).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
+impl Record {
+    /// Tracking poses after the first (the acquisition), with their truth.
+    fn tracked(&self) -> impl Iterator<Item = (&PoseMsg, &PoseMsg, u64)> {
+        self.poses
+            .iter()
+            .skip(1)
+            .filter(|(p, _)| p.status == status::TRACKING)
+            .filter_map(|(p, at)| Some((p, self.truth.get(&p.frame_id)?, *at)))
+    }
+
+    /// Frames the estimator skipped between its first and last pose.
+    fn dropped(&self) -> u64 {
+        match (self.poses.first(), self.poses.last()) {
+            (Some((a, _)), Some((b, _))) => (b.frame_id - a.frame_id + 1).saturating_sub(self.poses.len() as u64),
+            _ => 0,
+        }
+    }
+
+    fn status(&self, elapsed: f64, controller: Option<&str>, live: bool) {
+        let errors = Samples::new(self.tracked().map(|(p, t, _)| position_error(p, t)));
+        let latency = Samples::new(
+            self.poses
+                .iter()
+                .map(|(p, _)| (p.publish_time_ns.saturating_sub(p.capture_time_ns)) as f64 * 1e-6),
+        );
+        let state = self
+            .poses
+            .last()
+            .map(|(p, _)| crate::client::status_name(p.status))
+            .unwrap_or_else(|| "acquiring".into());
+        let line = format!(
+            "{elapsed:5.1} s | frames {:5} | poses {:5} dropped {:3} | {state} | error {:5.1} mm (p95 {:5.1}) | capture→pose p50 {:5.1} ms p99 {:5.1} ms",
+            self.truth.len(),
+            self.poses.len(),
+            self.dropped(),
+            errors.median(),
+            errors.percentile(95.0),
+            latency.median(),
+            latency.percentile(99.0)
+        );
+        if live {
+            let controller = controller.unwrap_or("");
+            // Two lines, redrawn in place.
+            eprint!("\r\x1b[2K{line}\n\x1b[2Kcontroller: {controller}\x1b[1A");
+            let _ = std::io::stderr().flush();
+        } else {
+            eprintln!("{line}");
+        }
+    }
+
+    fn summary(&self) -> String {
+        let errors = Samples::new(self.tracked().map(|(p, t, _)| position_error(p, t)));
+        let latency = Samples::new(
+            self.poses
+                .iter()
+                .skip(1)
+                .map(|(p, _)| p.publish_time_ns.saturating_sub(p.capture_time_ns) as f64 * 1e-6),
+        );
+        let end_to_end = Samples::new(
+            self.poses
+                .iter()
+                .skip(1)
+                .map(|(p, at)| at.saturating_sub(p.capture_time_ns) as f64 * 1e-6),
+        );
+        let tracking = self.poses.iter().filter(|(p, _)| p.status == status::TRACKING).count();
+        let acquisition = self
+            .poses
+            .first()
+            .map(|(p, _)| p.publish_time_ns.saturating_sub(p.capture_time_ns) as f64 * 1e-9)
+            .unwrap_or(f64::NAN);
+        let seen = self.poses.len() as u64 + self.dropped();
+        format!(
+            "frames {}  poses {} ({tracking} tracking)  dropped {} ({:.2} %)\n\
+             acquisition {acquisition:.2} s (first frame → first pose)\n\
+             position error (tracking): mean {:.1} mm  p95 {:.1} mm  max {:.1} mm\n\
+             latency capture→pose published: p50 {:.1} ms  p99 {:.1} ms;  capture→pose received: p50 {:.1} ms  p99 {:.1} ms",
+            self.truth.len(),
+            self.poses.len(),
+            self.dropped(),
+            100.0 * self.dropped() as f64 / seen.max(1) as f64,
+            errors.mean(),
+            errors.percentile(95.0),
+            errors.max(),
+            latency.median(),
+            latency.percentile(99.0),
+            end_to_end.median(),
+            end_to_end.percentile(99.0)
+        )
+    }
+
+    /// x, y, z against time: truth and estimate, one panel each.
+    fn plot(&self) -> image::RgbImage {
+        let t0 = self.truth.values().next().map(|t| t.capture_time_ns).unwrap_or(0);
+        let time = |ns: u64| ns.saturating_sub(t0) as f64 * 1e-9;
+        let axis = |i: usize| {
+            let truth: Vec<(f64, f64)> = self
+                .truth
+                .values()
+                .map(|t| (time(t.capture_time_ns), t.position_mm[i]))
+                .collect();
+            let estimate: Vec<(f64, f64)> = self
+                .poses
+                .iter()
+                .map(|(p, _)| (time(p.capture_time_ns), p.position_mm[i]))
+                .collect();
+            (truth, estimate)
+        };
+        let data: Vec<_> = (0..3).map(axis).collect();
+        let titles = ["x (hand frame)", "y (hand frame)", "z (hand frame)"];
+        let panels: Vec<Panel> = data
+            .iter()
+            .zip(titles)
+            .map(|((truth, estimate), title)| Panel {
+                title,
+                x_label: "time [s]",
+                y_label: "mm",
+                series: vec![
+                    Series {
+                        label: "truth",
+                        points: truth,
+                        color: PALETTE[0],
+                    },
+                    Series {
+                        label: "estimate",
+                        points: estimate,
+                        color: PALETTE[1],
+                    },
+                ],
+                ..Default::default()
+            })
+            .collect();
+        plot::panels(&panels, 1200, 900)
+    }
+}
