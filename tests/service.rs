@@ -196,7 +196,7 @@ fn json_text<'a>(line: &'a str, key: &str) -> &'a str {
     let end = if rest.starts_with('[') {
         rest.find(']').map(|i| i + 1)
     } else {
-        rest.find(|c: char| c == ',' || c == '}')
+        rest.find([',', '}'])
     };
     &rest[..end.unwrap_or_else(|| panic!("unterminated {key} in {line}"))]
 }
@@ -227,8 +227,8 @@ fn bits(values: &[f64]) -> Vec<u64> {
 }
 
 /// Asserts that every pose the Python client printed is, field by field and bit by bit,
-/// the pose Rust received (or sent) with that frame id; returns how many it printed.
-fn assert_python_saw(lines: &[String], rust: &HashMap<u64, PoseMsg>) -> usize {
+/// the pose Rust received (or sent) with that frame id.
+fn assert_python_saw(lines: &[String], rust: &HashMap<u64, PoseMsg>) {
     let mut last: Option<u64> = None;
     for line in lines {
         let value: serde_json::Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}: {line}"));
@@ -257,7 +257,6 @@ fn assert_python_saw(lines: &[String], rust: &HashMap<u64, PoseMsg>) -> usize {
         let name = ["tracking", "searching", "lost"][p.status as usize];
         assert_eq!(value["status_name"], name, "{line}");
     }
-    lines.len()
 }
 
 /// A pose with every field different from zero and from the others, with floats whose
