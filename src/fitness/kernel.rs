@@ -97,8 +97,11 @@ impl Chunk {
             *o = (vr * width + ur + ROUND).to_bits() - ROUND.to_bits();
         }
         let n = xs.len();
-        for (t, &i) in self.tex.iter_mut().zip(&self.idx[..n]) {
-            *t = img.px[i as usize];
+        let px = &img.px[..img.width * img.height];
+        for (t, &i) in self.tex[..n].iter_mut().zip(&self.idx[..n]) {
+            // SAFETY: `i = v·width + u` with `u ≤ width − 1` and `v ≤ height − 1` (clamped
+            // above, exact in f32 below `MAX_TEXELS`), so `i < width · height = px.len()`.
+            *t = unsafe { *px.get_unchecked(i as usize) };
         }
         &self.tex[..n]
     }
