@@ -6,7 +6,7 @@ use serde::Serialize;
 use crate::calibration::CalibrationError;
 use crate::config::{Config, Mode};
 use crate::fitness::{OuterRule, PointSet, Scorer};
-use crate::frame::{FramePyramid, StereoImages};
+use crate::frame::StereoImages;
 use crate::ga::{self, Bounds, Outcome, Problem};
 use crate::lookup::LevelLookup;
 use crate::model::PhotoModel;
@@ -36,11 +36,10 @@ impl Prepared {
         };
         let scorer = scorer_for(model, config);
         let start = std::time::Instant::now();
-        let pyramid = FramePyramid::build(images, &rig, levels, &config.fitness.classes());
-        let levels = pyramid.levels.iter().map(|l| scorer.lookup(l)).collect();
+        let levels = LevelLookup::pyramid(images, &rig, levels, &scorer.texel_rule());
         tracing::debug!("frame preparation: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
         let bounds = Bounds::new(&config.search, model, mode == Mode::Robust);
-        let points = ga::level_points(model, &scorer, pyramid.levels.len(), mode == Mode::Robust);
+        let points = ga::level_points(model, &scorer, levels.len(), mode == Mode::Robust);
         Ok(Self {
             scorer,
             levels,

@@ -1,6 +1,6 @@
-//! Stereo frames: loading side-by-side or separate images, and the per-frame colour
-//! data the fitness reads (one colour code and one raw hue byte per pixel), computed
-//! once per frame for every pyramid level.
+//! Stereo frames: loading side-by-side or separate images, their coarse pyramid levels,
+//! and the per-pixel colour data of the paper (one colour code, saturation and raw hue
+//! per pixel) that [`crate::lookup`] packs for the fitness.
 
 use std::path::{Path, PathBuf};
 
@@ -238,45 +238,21 @@ pub struct FrameLevel {
     pub right: ColorPlane,
 }
 
-/// Per-frame colour data at every pyramid level, level 0 at full resolution.
-#[derive(Debug, Clone)]
-pub struct FramePyramid {
-    pub levels: Vec<FrameLevel>,
-}
-
-impl FramePyramid {
-    /// Computes the colour planes once per frame; coarser levels average 2×2 blocks of RGB.
-    pub fn build(images: &StereoImages, rig: &StereoRig, levels: usize, classes: &ColorClasses) -> Self {
-        let mut out = Vec::with_capacity(levels);
-        let (mut l, mut r) = (images.left.clone(), images.right.clone());
-        let mut scale = 1.0;
-        for level in 0..levels.max(1) {
-            if level > 0 {
-                l = half(&l);
-                r = half(&r);
-                scale *= 0.5;
+/// The coarse pyramid levels 1.. of a stereo frame (`levels` in all, counting the frame
+/// itself as level 0): each level averages 2×2 blocks of the one above and is then
+/// blurred a little more, like the model's thumbnail colours.
+pub fn coarse_levels(images: &StereoImages, levels: usize) -> Vec<StereoImages> {
+    let (mut l, mut r) = (images.left.clone(), images.right.clone());
+    (1..levels)
+        .map(|_| {
+            l = half(&l);
+            r = half(&r);
+            StereoImages {
+                left: blur3(&l),
+                right: blur3(&r),
             }
-            let mut level_rig = rig.scaled(scale);
-            level_rig.width = l.width();
-            level_rig.height = l.height();
-            // Coarse levels are blurred a little more, like the model's thumbnail colours.
-            let (lc, rc) = if level > 0 {
-                (
-                    ColorPlane::from_rgb(&blur3(&l), classes),
-                    ColorPlane::from_rgb(&blur3(&r), classes),
-                )
-            } else {
-                (ColorPlane::from_rgb(&l, classes), ColorPlane::from_rgb(&r, classes))
-            };
-            out.push(FrameLevel {
-                scale,
-                rig: level_rig,
-                left: lc,
-                right: rc,
-            });
-        }
-        Self { levels: out }
-    }
+        })
+        .collect()
 }
 
 /// 3×3 box blur (edges clamped): a horizontal then a vertical 3-tap sum.

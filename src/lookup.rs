@@ -13,7 +13,9 @@ use rayon::prelude::*;
 use crate::camera::StereoRig;
 use crate::color::{hue_distance, ColorClasses, BLACK, GRAY, WHITE};
 use crate::fitness::OuterRule;
-use crate::frame::{ColorPlane, FrameLevel, PixelColor, Region};
+use image::RgbImage;
+
+use crate::frame::{coarse_levels, ColorPlane, FrameLevel, PixelColor, Region, StereoImages};
 
 /// Colour code of a texel outside the image: it matches no model colour and, for outer
 /// points, counts as target (a mismatch), as points outside an image do.
@@ -231,6 +233,29 @@ impl LookupImage {
         }
     }
 
+    /// Converts a whole RGB image (rows on all cores).
+    pub fn from_rgb(img: &RgbImage, rule: &TexelRule) -> Self {
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let (pw, ph) = (w + 2, h + 2);
+        assert!(
+            pw * ph < MAX_TEXELS,
+            "{pw}x{ph} image is larger than the fitness kernel supports"
+        );
+        let mut px = vec![OUTSIDE_TEXEL; pw * ph];
+        if w > 0 {
+            px.par_chunks_exact_mut(pw)
+                .skip(1)
+                .zip(img.as_raw().par_chunks_exact(3 * w))
+                .for_each(|(row, src)| rule.rgb_row(src, &mut row[1..=w]));
+        }
+        Self {
+            width: pw,
+            height: ph,
+            origin: (0, 0),
+            px,
+        }
+    }
+
     /// An empty region (every point reads "outside") with room for a whole
     /// `width × height` image, so refills never allocate.
     pub fn with_capacity(width: usize, height: usize) -> Self {
@@ -306,6 +331,28 @@ impl LevelLookup {
             left: LookupImage::new(&level.left, rule),
             right: LookupImage::new(&level.right, rule),
         }
+    }
+
+    /// The lookups of every pyramid level of a frame taken with `rig`, level 0 at full
+    /// resolution (see [`crate::frame::coarse_levels`]).
+    pub fn pyramid(images: &StereoImages, rig: &StereoRig, levels: usize, rule: &TexelRule) -> Vec<Self> {
+        let level = |scale: f64, im: &StereoImages| {
+            let mut rig = rig.scaled(scale);
+            (rig.width, rig.height) = im.eye_size();
+            Self {
+                scale,
+                rig,
+                left: LookupImage::from_rgb(&im.left, rule),
+                right: LookupImage::from_rgb(&im.right, rule),
+            }
+        };
+        let mut out = vec![level(1.0, images)];
+        let mut scale = 1.0;
+        for im in coarse_levels(images, levels) {
+            scale *= 0.5;
+            out.push(level(scale, &im));
+        }
+        out
     }
 
     /// Full-resolution lookups for `rig`'s image size covering nothing yet (tracking
@@ -390,6 +437,18 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn whole_images_convert_like_the_scalar_colour_plane() {
+        let img = RgbImage::from_fn(37, 5, |x, y| image::Rgb([(x * 7) as u8, (y * 50) as u8, (x * y) as u8]));
+        let rule = rule(OuterRule::ColorClass, 10);
+        let fast = LookupImage::from_rgb(&img, &rule);
+        let scalar = LookupImage::new(&ColorPlane::from_rgb(&img, &rule.classes), &rule);
+        assert_eq!(
+            (fast.width, fast.height, &fast.px),
+            (scalar.width, scalar.height, &scalar.px)
+        );
     }
 
     #[test]

@@ -190,7 +190,8 @@ unsafe fn count_avx2<const BOTH: bool>(
     count_chunks::<BOTH>(points, images, projections, tol)
 }
 
-/// The counts; with `BOTH` false only the left image is read (right counts are copies).
+/// The counts; with `BOTH` false only the left image is read and counted (the right
+/// counts and `confirmed` are then left at zero).
 #[inline(always)]
 fn count_chunks<const BOTH: bool>(
     points: &PointSet,
@@ -210,25 +211,38 @@ fn count_chunks<const BOTH: bool>(
         let r = start..(start + CHUNK).min(chromatic);
         let (xs, ys) = (&inner_x[r.clone()], &inner_y[r.clone()]);
         let tl = a.read(left, pl, xs, ys);
-        let tr = if BOTH { b.read(right, pr, xs, ys) } else { tl };
         let model = points.inner_code[r.clone()].iter().zip(&points.inner_sat[r]);
-        for ((&l, &r), (&code, &sat)) in tl.iter().zip(tr).zip(model) {
-            let ml = chromatic_match(l, code, sat, tol);
-            c.close[0] += ml as u32;
-            c.close[1] += chromatic_match(r, code, sat, tol) as u32;
-            c.confirmed += (ml & (r & 0xff < 180) & same_colour(l, r, tol)) as u32;
+        if BOTH {
+            let tr = b.read(right, pr, xs, ys);
+            for ((&l, &r), (&code, &sat)) in tl.iter().zip(tr).zip(model) {
+                let ml = chromatic_match(l, code, sat, tol);
+                c.close[0] += ml as u32;
+                c.close[1] += chromatic_match(r, code, sat, tol) as u32;
+                c.confirmed += (ml & (r & 0xff < 180) & same_colour(l, r, tol)) as u32;
+            }
+        } else {
+            for (&l, (&code, &sat)) in tl.iter().zip(model) {
+                c.close[0] += chromatic_match(l, code, sat, tol) as u32;
+            }
         }
     }
     for start in (chromatic..inner_x.len()).step_by(CHUNK) {
         let r = start..(start + CHUNK).min(inner_x.len());
         let (xs, ys) = (&inner_x[r.clone()], &inner_y[r.clone()]);
         let tl = a.read(left, pl, xs, ys);
-        let tr = if BOTH { b.read(right, pr, xs, ys) } else { tl };
-        for ((&l, &r), &code) in tl.iter().zip(tr).zip(&points.inner_code[r]) {
-            let (ml, mr) = ((l & 0xff) == code as u32, (r & 0xff) == code as u32);
-            c.close[0] += ml as u32;
-            c.close[1] += mr as u32;
-            c.confirmed += (ml & mr) as u32;
+        let codes = &points.inner_code[r];
+        if BOTH {
+            let tr = b.read(right, pr, xs, ys);
+            for ((&l, &r), &code) in tl.iter().zip(tr).zip(codes) {
+                let (ml, mr) = ((l & 0xff) == code as u32, (r & 0xff) == code as u32);
+                c.close[0] += ml as u32;
+                c.close[1] += mr as u32;
+                c.confirmed += (ml & mr) as u32;
+            }
+        } else {
+            for (&l, &code) in tl.iter().zip(codes) {
+                c.close[0] += ((l & 0xff) == code as u32) as u32;
+            }
         }
     }
     let n_outer = points.outer_x.len();
@@ -236,14 +250,15 @@ fn count_chunks<const BOTH: bool>(
     for start in (0..n_outer).step_by(CHUNK) {
         let r = start..(start + CHUNK).min(n_outer);
         let (xs, ys) = (&points.outer_x[r.clone()], &points.outer_y[r]);
-        let tl = a.read(left, pl, xs, ys);
-        let tr = if BOTH { b.read(right, pr, xs, ys) } else { tl };
-        for (&l, &r) in tl.iter().zip(tr) {
-            target[0] += (l >> 16) & 1;
-            target[1] += (r >> 16) & 1;
+        target[0] += a.read(left, pl, xs, ys).iter().map(|&t| (t >> 16) & 1).sum::<u32>();
+        if BOTH {
+            target[1] += b.read(right, pr, xs, ys).iter().map(|&t| (t >> 16) & 1).sum::<u32>();
         }
     }
-    c.background = target.map(|t| n_outer as u32 - t);
+    c.background = [
+        n_outer as u32 - target[0],
+        if BOTH { n_outer as u32 - target[1] } else { 0 },
+    ];
     c
 }
 
