@@ -22,8 +22,10 @@ impl std::fmt::Debug for Workers {
 impl Workers {
     /// `threads` workers; 0 means one per core. Pools are created on first use and kept.
     pub fn new(threads: usize) -> Self {
+        // Asking the system for the core count reads files (and allocates): once.
+        static CORES: OnceLock<usize> = OnceLock::new();
         let threads = if threads == 0 {
-            std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+            *CORES.get_or_init(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1))
         } else {
             threads
         };

@@ -104,7 +104,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let start = Instant::now();
     let live = std::io::stderr().is_terminal();
     let mut shown = Instant::now();
-    while ipc.wait(Duration::from_millis(5)) && start.elapsed().as_secs_f64() < args.seconds {
+    while ipc.wait(Duration::from_millis(1)) && start.elapsed().as_secs_f64() < args.seconds {
         let now = monotonic_ns();
         while let Some(s) = truths.receive().map_err(|e| anyhow!("cannot receive truth: {e:?}"))? {
             run.truth.insert(s.payload().frame_id, *s.payload());
@@ -264,10 +264,23 @@ impl Record {
             .filter_map(|(p, at)| Some((p, self.truth.get(&p.frame_id)?, *at)))
     }
 
-    /// Frames the estimator skipped between its first and last pose.
-    fn dropped(&self) -> u64 {
-        match (self.poses.first(), self.poses.last()) {
-            (Some((a, _)), Some((b, _))) => (b.frame_id - a.frame_id + 1).saturating_sub(self.poses.len() as u64),
+    /// Frames the estimator skipped while tracking: between its second and last pose
+    /// (the first, the acquisition, takes many frame periods), and the frames it tracked.
+    fn dropped(&self) -> (u64, u64) {
+        match (self.poses.get(1), self.poses.last()) {
+            (Some((a, _)), Some((b, _))) => {
+                let span = b.frame_id.saturating_sub(a.frame_id) + 1;
+                let posed = self.poses.len() as u64 - 1;
+                (span.saturating_sub(posed), span)
+            }
+            _ => (0, 0),
+        }
+    }
+
+    /// Frames that went by during the acquisition.
+    fn acquisition_frames(&self) -> u64 {
+        match (self.poses.first(), self.poses.get(1)) {
+            (Some((a, _)), Some((b, _))) => b.frame_id.saturating_sub(a.frame_id + 1),
             _ => 0,
         }
     }
@@ -288,7 +301,7 @@ impl Record {
             "{elapsed:5.1} s | frames {:5} | poses {:5} dropped {:3} | {state} | error {:5.1} mm (p95 {:5.1}) | capture→pose p50 {:5.1} ms p99 {:5.1} ms",
             self.truth.len(),
             self.poses.len(),
-            self.dropped(),
+            self.dropped().0,
             errors.median(),
             errors.percentile(95.0),
             latency.median(),
@@ -324,16 +337,16 @@ impl Record {
             .first()
             .map(|(p, _)| p.publish_time_ns.saturating_sub(p.capture_time_ns) as f64 * 1e-9)
             .unwrap_or(f64::NAN);
-        let seen = self.poses.len() as u64 + self.dropped();
+        let (dropped, span) = self.dropped();
         format!(
-            "frames {}  poses {} ({tracking} tracking)  dropped {} ({:.2} %)\n\
-             acquisition {acquisition:.2} s (first frame → first pose)\n\
+            "frames {}  poses {} ({tracking} tracking)  dropped while tracking {dropped} of {span} ({:.2} %)\n\
+             acquisition {acquisition:.2} s (first frame → first pose; {} frames went by)\n\
              position error (tracking): mean {:.1} mm  p95 {:.1} mm  max {:.1} mm\n\
              latency capture→pose published: p50 {:.1} ms  p99 {:.1} ms;  capture→pose received: p50 {:.1} ms  p99 {:.1} ms",
             self.truth.len(),
             self.poses.len(),
-            self.dropped(),
-            100.0 * self.dropped() as f64 / seen.max(1) as f64,
+            100.0 * dropped as f64 / span.max(1) as f64,
+            self.acquisition_frames(),
             errors.mean(),
             errors.percentile(95.0),
             errors.max(),
