@@ -265,6 +265,136 @@ mod with_detector {
         format!("[camera]\ncalibration = {calibration:?}\n[detect]\nmodel = {model:?}\nonnxruntime = {library:?}\n")
     }
 
+    /// A hand-written ONNX network whose output is a constant tensor: input `images`
+    /// `[1, 3, height, width]` with symbolic sides, output `output0` of `shape`.
+    fn constant_network(shape: &[i64], data: &[f32]) -> Vec<u8> {
+        fn varint(out: &mut Vec<u8>, mut v: u64) {
+            while v >= 0x80 {
+                out.push((v as u8) | 0x80);
+                v >>= 7;
+            }
+            out.push(v as u8);
+        }
+        fn field(out: &mut Vec<u8>, number: u64, bytes: &[u8]) {
+            varint(out, number << 3 | 2);
+            varint(out, bytes.len() as u64);
+            out.extend_from_slice(bytes);
+        }
+        fn int(out: &mut Vec<u8>, number: u64, v: u64) {
+            varint(out, number << 3);
+            varint(out, v);
+        }
+        // ValueInfoProto of a float tensor; a dimension is a value or a symbol.
+        let value_info = |name: &str, dims: &[Result<i64, &str>]| {
+            let mut shape = Vec::new();
+            for d in dims {
+                let mut dim = Vec::new();
+                match d {
+                    Ok(v) => int(&mut dim, 1, *v as u64),
+                    Err(symbol) => field(&mut dim, 2, symbol.as_bytes()),
+                }
+                field(&mut shape, 1, &dim);
+            }
+            let mut tensor = Vec::new();
+            int(&mut tensor, 1, 1); // FLOAT
+            field(&mut tensor, 2, &shape);
+            let mut ty = Vec::new();
+            field(&mut ty, 1, &tensor);
+            let mut info = Vec::new();
+            field(&mut info, 1, name.as_bytes());
+            field(&mut info, 2, &ty);
+            info
+        };
+        let mut value = Vec::new();
+        for d in shape {
+            int(&mut value, 1, *d as u64);
+        }
+        int(&mut value, 2, 1); // FLOAT
+        let raw: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+        field(&mut value, 9, &raw);
+        let mut attribute = Vec::new();
+        field(&mut attribute, 1, b"value");
+        field(&mut attribute, 5, &value);
+        int(&mut attribute, 20, 4); // TENSOR
+        let mut node = Vec::new();
+        field(&mut node, 2, b"output0");
+        field(&mut node, 4, b"Constant");
+        field(&mut node, 5, &attribute);
+        let mut graph = Vec::new();
+        field(&mut graph, 1, &node);
+        field(&mut graph, 2, b"constant");
+        field(
+            &mut graph,
+            11,
+            &value_info("images", &[Ok(1), Ok(3), Err("height"), Err("width")]),
+        );
+        let out_dims: Vec<Result<i64, &str>> = shape.iter().map(|d| Ok(*d)).collect();
+        field(&mut graph, 12, &value_info("output0", &out_dims));
+        let mut opset = Vec::new();
+        int(&mut opset, 2, 13);
+        let mut model = Vec::new();
+        int(&mut model, 1, 8); // IR version
+        field(&mut model, 7, &graph);
+        field(&mut model, 8, &opset);
+        model
+    }
+
+    /// A YOLOv8-layout network of dynamic input size runs with `input_size`, and its
+    /// boxes come back in photo pixels; an output of another shape is a one-line error.
+    #[test]
+    fn yolov8_layout_network_of_dynamic_size_runs() {
+        let dir = scratch("detect-yolov8");
+        let config = Config::load(None).unwrap();
+        // Two boxes in 640 × 640 input pixels: a cup (0.9) and a person (0.3).
+        let n = 2;
+        let mut data = vec![0.0f32; 84 * n];
+        for (i, (cx, cy, w, h, class, score)) in [
+            (320.0, 300.0, 200.0, 150.0, 41, 0.9),
+            (100.0, 200.0, 50.0, 80.0, 0, 0.3),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            for (a, v) in [cx, cy, w, h].into_iter().enumerate() {
+                data[a * n + i] = v;
+            }
+            data[(4 + class) * n + i] = score;
+        }
+        let path = dir.join("yolov8-like.onnx");
+        std::fs::write(&path, constant_network(&[1, 84, n as i64], &data)).unwrap();
+        let settings = photopose::config::DetectSettings {
+            model: path.clone(),
+            ..config.detect.clone()
+        };
+        let mut detector = detector_with(&settings);
+        assert_eq!(detector.input_size(), (640, 640));
+        let photo = scenes::photo("coffee.jpg");
+        let found = detector.detect(&photo, 0.25).unwrap();
+        let got: Vec<(String, f32)> = found.list.iter().map(|d| (d.class_name(), d.score)).collect();
+        assert_eq!(got, vec![("cup".to_string(), 0.9), ("person".to_string(), 0.3)]);
+        let lb = detect::letterbox::Letterbox::new(600, 400, 640, 640);
+        let want = lb.to_photo(&Rect::from_center(320.0, 300.0, 200.0, 150.0));
+        assert_eq!(found.list[0].rect, want);
+
+        let path = dir.join("not-yolo.onnx");
+        std::fs::write(&path, constant_network(&[1, 10, 3], &[0.0; 30])).unwrap();
+        let settings = photopose::config::DetectSettings {
+            model: path,
+            ..config.detect.clone()
+        };
+        let e = detector_with(&settings).detect(&photo, 0.25).unwrap_err().to_string();
+        assert!(
+            e.contains("not-yolo.onnx: output shape [1, 10, 3] is not a YOLO layout"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    fn detector_with(settings: &photopose::config::DetectSettings) -> Detector {
+        Detector::new(settings).unwrap_or_else(|e| panic!("{e}"))
+    }
+
     /// `--box` wins over detection: no detection record.
     #[test]
     fn box_overrides_detection() {

@@ -57,12 +57,8 @@ pub enum DetectError {
     OutputLength { shape: Vec<usize>, len: usize },
     #[error("{model}: input shape {shape:?} is not one RGB image [1, 3, H, W]")]
     UnsupportedInput { model: PathBuf, shape: Vec<i64> },
-    #[error("{model}: {source}")]
-    InModel {
-        model: PathBuf,
-        #[source]
-        source: Box<DetectError>,
-    },
+    #[error("{model}: {problem}")]
+    InModel { model: PathBuf, problem: Box<DetectError> },
     #[error("ONNX Runtime library {path} (from {origin}) not found or not a file: run tools/setup-detect, or point ORT_DYLIB_PATH or [detect] onnxruntime at libonnxruntime.so 1.31 or newer")]
     LibraryMissing { path: PathBuf, origin: &'static str },
     #[error("detector model {path} not found: run tools/setup-detect, or set [detect] model to a YOLO .onnx file")]

@@ -106,7 +106,7 @@ impl Detector {
         let outputs = guarded(model, || {
             let input = TensorRef::from_array_view((shape, tensor.as_slice())).map_err(|e| e.to_string())?;
             let outputs = session.run(ort::inputs![name => input]).map_err(|e| e.to_string())?;
-            // Every f32 output of rank 3, as (shape, data); the first with a YOLO layout is used.
+            // Every f32 output as (shape, data); the first with a YOLO layout is used.
             let mut all = Vec::new();
             for (_, value) in outputs.iter() {
                 if let Ok((shape, data)) = value.try_extract_tensor::<f32>() {
@@ -129,7 +129,7 @@ impl Detector {
         };
         postprocess(data, dims, &letterbox, min_score, self.iou_threshold).map_err(|e| DetectError::InModel {
             model: self.model.clone(),
-            source: Box::new(e),
+            problem: Box::new(e),
         })
     }
 }
