@@ -22,9 +22,12 @@ and the ``onnx`` package only.
 
 import sys
 
-import numpy as np
-import onnx
-from onnx import TensorProto, helper, numpy_helper
+try:
+    import numpy as np
+    import onnx
+    from onnx import TensorProto, helper, numpy_helper
+except ImportError as e:
+    sys.exit(f"darknet_to_onnx: {e} (tools/setup-detect installs numpy and onnx into .detect/python)")
 
 
 def parse_cfg(path):
@@ -59,6 +62,8 @@ class Weights:
     def __init__(self, path):
         with open(path, "rb") as f:
             data = f.read()
+        if len(data) < 20:
+            raise ValueError(f"{path}: {len(data)} bytes is too short for a Darknet weights file")
         major, minor, _revision = np.frombuffer(data, dtype="<i4", count=3)
         seen_bytes = 8 if major * 10 + minor >= 2 else 4
         offset = 12 + seen_bytes
@@ -177,6 +182,8 @@ def convert(cfg_path, weights_path, out_path):
             )
             h, w = h * stride, w * stride
         elif kind == "route":
+            if int(opts.get("groups", 1)) != 1:
+                raise ValueError(f"{cfg_path}: layer {index}: [route] groups is not supported")
             layers = [l if l >= 0 else index + l for l in ints(opts["layers"])]
             if len(layers) == 1:
                 x = outputs[layers[0]]
@@ -186,6 +193,8 @@ def convert(cfg_path, weights_path, out_path):
                 c = sum(shapes[l][0] for l in layers)
                 _, h, w = shapes[layers[0]]
         elif kind == "shortcut":
+            if opts.get("activation", "linear") != "linear":
+                raise ValueError(f"{cfg_path}: layer {index}: [shortcut] activation is not supported")
             src = int(opts["from"])
             src = src if src >= 0 else index + src
             x = g.op("Add", [x, outputs[src]])
