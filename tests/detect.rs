@@ -1,8 +1,9 @@
 //! Building a photo-model with the detector. In every build: `photopose model` checks the
 //! class name and says how to get a detector. With `--features detect` (after
 //! tools/setup-detect): the coffee cup is found where a person would box it, the
-//! photo-model built from that box estimates a rendered scene to the core accuracy, and
-//! a missing or broken runtime or network gives one line.
+//! photo-model built from that box estimates rendered scenes to the core accuracy
+//! (medians, as good as the hand box), other output layouts run, and a missing or broken
+//! runtime or network gives one line.
 
 use std::path::Path;
 
@@ -62,6 +63,19 @@ mod with_detector {
         y1: 311.0,
     };
 
+    /// Card centre (left camera, mm) and intrinsic X-Y-Z rotation (degrees) of the
+    /// scenes the detected model is estimated on: ~600 mm away, tilted up to 15°.
+    const SCENES: [([f64; 3], [f64; 3]); 8] = [
+        ([30.0, 20.0, 600.0], [10.0, -5.0, 0.0]),
+        ([30.0, 20.0, 600.0], [10.0, -5.0, 0.0]),
+        ([0.0, 0.0, 600.0], [0.0, 0.0, 0.0]),
+        ([-40.0, 10.0, 620.0], [-10.0, 15.0, 0.0]),
+        ([20.0, -30.0, 580.0], [15.0, 10.0, 5.0]),
+        ([50.0, 30.0, 600.0], [5.0, -12.0, 0.0]),
+        ([0.0, 40.0, 640.0], [-8.0, -8.0, 3.0]),
+        ([-20.0, -10.0, 560.0], [12.0, 6.0, -4.0]),
+    ];
+
     fn detector(config: &Config) -> Detector {
         Detector::new(&config.detect).unwrap_or_else(|e| panic!("{e} (run tools/setup-detect first)"))
     }
@@ -81,6 +95,7 @@ mod with_detector {
             times.push(start.elapsed().as_secs_f64() * 1e3);
         }
         let detections = detections.unwrap();
+        let first = times[0];
         times.sort_by(f64::total_cmp);
         let cup = detect::choose(
             &detections,
@@ -94,7 +109,7 @@ mod with_detector {
         println!(
             "coffee.jpg: cup score {:.3} box ({:.1}, {:.1})–({:.1}, {:.1}), IoU {iou:.3} with the reference; \
              {iw}x{ih} input, detection {:.1} ms (median of 5, first {:.1} ms), model load {loaded:.0} ms",
-            cup.score, cup.rect.x0, cup.rect.y0, cup.rect.x1, cup.rect.y1, times[2], times[0]
+            cup.score, cup.rect.x0, cup.rect.y0, cup.rect.x1, cup.rect.y1, times[2], first
         );
         assert!(iou >= 0.8, "IoU {iou:.3} with the reference box");
         assert_eq!(detections.list[0].class_name(), "cup", "the cup is the best detection");
@@ -102,7 +117,7 @@ mod with_detector {
     }
 
     #[test]
-    fn detected_model_estimates_a_rendered_scene() {
+    fn detected_model_estimates_rendered_scenes() {
         let dir = scratch("detect-estimate");
         let p = |f: &str| dir.join(f).display().to_string();
         let out = photopose(&[
@@ -134,47 +149,68 @@ mod with_detector {
         let overlay = image::open(p("cup-overlay.png")).unwrap();
         assert_eq!((overlay.width(), overlay.height()), (600, 400));
 
-        // A clean HD scene of that box ~600 mm away in front of the collage wall.
+        // Clean HD scenes ~600 mm away in front of the collage wall, each rendered from
+        // the detected box and, for comparison, from the hand box.
         let b = model.bbox;
-        let spec = Spec {
-            name: "detected-cup-600",
-            photo: "coffee.jpg",
-            bbox: [b.x as i64, b.y as i64, b.w as i64, b.h as i64],
-            position: [30.0, 20.0, 600.0],
-            rotation_deg: [10.0, -5.0, 0.0],
-            size_mm: [100.0, 100.0 * b.h as f64 / b.w as f64],
-            hand_eye: false,
-            noise: 0.0,
-            brightness: 1.0,
-            occluder: 0.0,
+        let detected_box = [b.x as i64, b.y as i64, b.w as i64, b.h as i64];
+        let hand_box = [149, 22, 279, 289];
+        let mut rows = Vec::new();
+        for (i, (position, rotation_deg)) in SCENES.into_iter().enumerate() {
+            let mut row = Vec::new();
+            for bbox in [detected_box, hand_box] {
+                let spec = Spec {
+                    name: "cup-600",
+                    photo: "coffee.jpg",
+                    bbox,
+                    position,
+                    rotation_deg,
+                    size_mm: [100.0, 100.0 * bbox[3] as f64 / bbox[2] as f64],
+                    hand_eye: false,
+                    noise: 0.0,
+                    brightness: 1.0,
+                    occluder: 0.0,
+                };
+                let r = scenes::render(&spec, 100 + i as u64);
+                // The detected scene is estimated with the model file `photopose model` wrote.
+                let m = if bbox == detected_box { &model } else { &r.model };
+                let c = &r.config;
+                let outcome = estimate::run(m, &r.images, c, c.ga.generations, c.ga.seed, &mut |_| {}).unwrap();
+                let best = &outcome.best;
+                let size = best.size_mm(m.l_p, m.b_p);
+                row.push([
+                    (best.position - r.hand_from_model.translation.vector).norm(),
+                    ((size[0] - spec.size_mm[0]).abs() / spec.size_mm[0])
+                        .max((size[1] - spec.size_mm[1]).abs() / spec.size_mm[1])
+                        * 100.0,
+                    rotation_error_deg(&best.rotation(), &r.hand_from_model.rotation),
+                ]);
+            }
+            println!(
+                "scene {i} at {position:?} mm, {rotation_deg:?}°: detected box {:.1} mm {:.1} % {:.1}° | hand box {:.1} mm {:.1} % {:.1}°",
+                row[0][0], row[0][1], row[0][2], row[1][0], row[1][1], row[1][2]
+            );
+            rows.push(row);
+        }
+        let median = |model: usize, k: usize| {
+            let mut v: Vec<f64> = rows.iter().map(|r| r[model][k]).collect();
+            v.sort_by(f64::total_cmp);
+            (v[v.len() / 2 - 1] + v[v.len() / 2]) / 2.0
         };
-        let r = scenes::render(&spec, 100);
-        let outcome = estimate::run(
-            &model,
-            &r.images,
-            &r.config,
-            r.config.ga.generations,
-            r.config.ga.seed,
-            &mut |_| {},
-        )
-        .unwrap();
-        let best = &outcome.best;
-        let size = best.size_mm(model.l_p, model.b_p);
-        let position = (best.position - r.hand_from_model.translation.vector).norm();
-        let size_err = ((size[0] - spec.size_mm[0]).abs() / spec.size_mm[0])
-            .max((size[1] - spec.size_mm[1]).abs() / spec.size_mm[1]);
-        let rotation = rotation_error_deg(&best.rotation(), &r.hand_from_model.rotation);
+        let (position, size, rotation) = (median(0, 0), median(0, 1), median(0, 2));
         println!(
-            "detected cup model ({},{},{},{}): position error {position:.1} mm, size error {:.1} %, rotation error {rotation:.1}°",
+            "median over {} scenes: detected box ({},{},{},{}) {position:.1} mm, {size:.1} %, {rotation:.1}° | hand box {:.1} mm, {:.1} %, {:.1}°",
+            rows.len(),
             b.x,
             b.y,
             b.w,
             b.h,
-            size_err * 100.0
+            median(1, 0),
+            median(1, 1),
+            median(1, 2)
         );
-        assert!(position <= 10.0, "position error {position:.1} mm");
-        assert!(size_err <= 0.05, "size error {:.1} %", size_err * 100.0);
-        assert!(rotation <= 5.0, "rotation error {rotation:.1}°");
+        assert!(position <= 10.0, "median position error {position:.1} mm");
+        assert!(size <= 5.0, "median size error {size:.1} %");
+        assert!(rotation <= 5.0, "median rotation error {rotation:.1}°");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -2,7 +2,6 @@
 //! kept, centred on gray 114 padding (as YOLO models are trained and exported), and the
 //! mapping of boxes between input and photo pixels.
 
-use image::imageops::{self, FilterType};
 use image::RgbImage;
 
 use super::Rect;
@@ -79,26 +78,43 @@ impl Letterbox {
     }
 
     /// Writes the letterboxed photo into `tensor` as planar RGB (`[3, input_h, input_w]`,
-    /// NCHW without the batch) scaled to 0..1. `tensor` must hold `3 · input_w · input_h`
-    /// values; it is resized if not.
+    /// NCHW without the batch) scaled to 0..1, resizing it bilinearly with pixel centres
+    /// aligned (as OpenCV's `INTER_LINEAR`, which YOLO exports are fed with). `tensor` is
+    /// resized to `3 · input_w · input_h` values.
     pub fn fill(&self, photo: &RgbImage, tensor: &mut Vec<f32>) {
         let (iw, ih) = (self.input_w as usize, self.input_h as usize);
         let plane = iw * ih;
         tensor.clear();
         tensor.resize(3 * plane, PAD_GRAY as f32 / 255.0);
-        let scaled;
-        let src = if photo.dimensions() == (self.scaled_w, self.scaled_h) {
-            photo
-        } else {
-            scaled = imageops::resize(photo, self.scaled_w, self.scaled_h, FilterType::Triangle);
-            &scaled
+        let (pw, ph) = photo.dimensions();
+        if pw == 0 || ph == 0 {
+            return;
+        }
+        // Source position of each output column / row: lower index and weight of the upper.
+        let taps = |out: u32, src: u32| -> Vec<(usize, usize, f32)> {
+            let scale = src as f32 / out as f32;
+            (0..out)
+                .map(|i| {
+                    let x = ((i as f32 + 0.5) * scale - 0.5).clamp(0.0, (src - 1) as f32);
+                    let lo = x.floor() as usize;
+                    (lo, (lo + 1).min(src as usize - 1), x - lo as f32)
+                })
+                .collect()
         };
+        let columns = taps(self.scaled_w, pw);
+        let rows = taps(self.scaled_h, ph);
+        let raw = photo.as_raw();
+        let stride = pw as usize * 3;
         let (px, py) = (self.pad_x as usize, self.pad_y as usize);
-        for (y, row) in src.rows().enumerate() {
+        for (y, &(y0, y1, fy)) in rows.iter().enumerate() {
+            let (top, bottom) = (&raw[y0 * stride..][..stride], &raw[y1 * stride..][..stride]);
             let start = (py + y) * iw + px;
-            for (x, p) in row.enumerate() {
+            for (x, &(x0, x1, fx)) in columns.iter().enumerate() {
                 for c in 0..3 {
-                    tensor[c * plane + start + x] = p.0[c] as f32 / 255.0;
+                    let at = |row: &[u8], col: usize| row[col * 3 + c] as f32;
+                    let upper = at(top, x0) + (at(top, x1) - at(top, x0)) * fx;
+                    let lower = at(bottom, x0) + (at(bottom, x1) - at(bottom, x0)) * fx;
+                    tensor[c * plane + start + x] = (upper + (lower - upper) * fy) / 255.0;
                 }
             }
         }
@@ -164,6 +180,24 @@ mod tests {
             y1: 416.0,
         });
         assert_eq!((r.x0, r.y0, r.x1, r.y1), (0.0, 0.0, 600.0, 400.0));
+    }
+
+    #[test]
+    fn fill_resizes_bilinearly_with_centres_aligned() {
+        // A 4 × 1 ramp halved: each output pixel is the mean of two input pixels.
+        let mut photo = RgbImage::new(4, 2);
+        for (x, v) in [0u8, 100, 200, 250].into_iter().enumerate() {
+            photo.put_pixel(x as u32, 0, Rgb([v, v, v]));
+            photo.put_pixel(x as u32, 1, Rgb([v, v, v]));
+        }
+        let lb = Letterbox::new(4, 2, 2, 2);
+        assert_eq!((lb.scaled_w, lb.scaled_h, lb.pad_y), (2, 1, 0));
+        let mut t = Vec::new();
+        lb.fill(&photo, &mut t);
+        assert!(
+            (t[0] * 255.0 - 50.0).abs() < 1e-3 && (t[1] * 255.0 - 225.0).abs() < 1e-3,
+            "{t:?}"
+        );
     }
 
     #[test]

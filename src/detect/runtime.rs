@@ -97,9 +97,11 @@ impl Detector {
     /// Detects objects in `photo`: every box of every class scoring at least `min_score`
     /// after NMS, best first, in photo pixels.
     pub fn detect(&mut self, photo: &RgbImage, min_score: f32) -> Result<Detections, DetectError> {
+        let start = std::time::Instant::now();
         let (pw, ph) = photo.dimensions();
         let letterbox = Letterbox::new(pw, ph, self.input_w, self.input_h);
         letterbox.fill(photo, &mut self.tensor);
+        let prepared = start.elapsed();
         let shape = [1usize, 3, self.input_h as usize, self.input_w as usize];
         let (model, name, tensor) = (&self.model, self.input_name.as_str(), &self.tensor);
         let session = &mut self.session;
@@ -116,6 +118,7 @@ impl Detector {
             }
             Ok(all)
         })?;
+        let ran = start.elapsed();
         let classes = coco::NAMES.len();
         let chosen = outputs
             .iter()
@@ -127,10 +130,18 @@ impl Detector {
                 message: "the network has no float tensor output".into(),
             });
         };
-        postprocess(data, dims, &letterbox, min_score, self.iou_threshold).map_err(|e| DetectError::InModel {
-            model: self.model.clone(),
-            problem: Box::new(e),
-        })
+        let detections =
+            postprocess(data, dims, &letterbox, min_score, self.iou_threshold).map_err(|e| DetectError::InModel {
+                model: self.model.clone(),
+                problem: Box::new(e),
+            })?;
+        tracing::debug!(
+            "detection: letterbox {:.1} ms, network {:.1} ms, decoding and NMS {:.1} ms",
+            prepared.as_secs_f64() * 1e3,
+            (ran - prepared).as_secs_f64() * 1e3,
+            (start.elapsed() - ran).as_secs_f64() * 1e3
+        );
+        Ok(detections)
     }
 }
 
