@@ -114,3 +114,37 @@ fn dot(img: &mut RgbImage, x: f64, y: f64, r: i64, colour: Rgb<u8>, x0: f64, w: 
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::ColorClasses;
+    use crate::config::ModelSettings;
+    use std::path::Path;
+
+    #[test]
+    fn model_overlay_draws_box_and_points_on_the_photo() {
+        let photo = RgbImage::from_pixel(80, 60, Rgb([10, 10, 10]));
+        let settings = ModelSettings {
+            step_px: 6.0,
+            outer_width_px: 6.0,
+            ..ModelSettings::default()
+        };
+        let model = PhotoModel::build(
+            &photo,
+            Path::new("p.png"),
+            [20, 10, 40, 30],
+            &settings,
+            &ColorClasses::default(),
+        )
+        .expect("model");
+        let pic = draw_model(&photo, &model);
+        assert_eq!(pic.dimensions(), (80, 60));
+        assert_eq!(*pic.get_pixel(20, 10), OUTLINE, "top-left corner");
+        assert_eq!(*pic.get_pixel(59, 39), OUTLINE, "bottom-right corner");
+        let count = |c: Rgb<u8>| pic.pixels().filter(|p| **p == c).count();
+        assert!(count(INNER) >= model.inner.len(), "{} green pixels", count(INNER));
+        assert!(count(OUTER) > 0);
+        assert_eq!(*pic.get_pixel(0, 59), Rgb([10, 10, 10]), "far from the box: untouched");
+    }
+}
