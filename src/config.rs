@@ -15,6 +15,9 @@ pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
 /// The example factory calibration the built-in configuration refers to.
 pub const EXAMPLE_CALIBRATION: &str = include_str!("../config/SN-example.conf");
 const EXAMPLE_CALIBRATION_NAME: &str = "SN-example.conf";
+/// Where the built-in configuration resolves relative paths other than the calibration:
+/// the directory of `config/default.toml` in the source tree photopose was built from.
+const BUILT_IN_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/config");
 
 /// A configuration problem, always naming the file.
 #[derive(Debug, thiserror::Error)]
@@ -56,6 +59,7 @@ struct RawConfig {
     robust: RobustSettings,
     tracking: TrackingSettings,
     controller: RawController,
+    detect: RawDetect,
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -343,6 +347,30 @@ impl Default for RawController {
     }
 }
 
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawDetect {
+    model: PathBuf,
+    onnxruntime: PathBuf,
+    min_score: f32,
+    iou_threshold: f32,
+    input_size: u32,
+    threads: usize,
+}
+
+impl Default for RawDetect {
+    fn default() -> Self {
+        Self {
+            model: PathBuf::from("../.detect/yolov3-tiny.onnx"),
+            onnxruntime: PathBuf::from("../.detect/onnxruntime/libonnxruntime.so.1.31.1"),
+            min_score: 0.25,
+            iou_threshold: 0.45,
+            input_size: 640,
+            threads: 0,
+        }
+    }
+}
+
 /// `[controller]`: the example visual-servo client (`photopose controller`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ControllerSettings {
@@ -359,6 +387,24 @@ pub struct ControllerSettings {
     pub hand_from_grasp: Isometry3<f64>,
 }
 
+/// `[detect]`: the YOLO detector of `photopose model` (cargo feature `detect`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DetectSettings {
+    /// The YOLO network (.onnx), resolved against the configuration file's directory.
+    pub model: PathBuf,
+    /// The ONNX Runtime shared library (≥ 1.31), resolved likewise; `ORT_DYLIB_PATH`
+    /// overrides it.
+    pub onnxruntime: PathBuf,
+    /// Detections scoring below this (0–1) are dropped.
+    pub min_score: f32,
+    /// Per-class NMS: of two boxes overlapping by more than this IoU the weaker goes.
+    pub iou_threshold: f32,
+    /// Input side for networks whose input size is not fixed (a multiple of 32).
+    pub input_size: u32,
+    /// ONNX Runtime intra-op threads, 0 = its default (one per core).
+    pub threads: usize,
+}
+
 /// The validated configuration.
 #[derive(Debug, Clone)]
 pub struct Config {
@@ -372,6 +418,7 @@ pub struct Config {
     pub model: ModelSettings,
     pub fitness: FitnessParams,
     pub controller: ControllerSettings,
+    pub detect: DetectSettings,
 }
 
 impl Config {
@@ -390,8 +437,9 @@ impl Config {
         }
     }
 
-    /// Parses configuration text; `dir` resolves a relative calibration path
-    /// (`None`: the built-in configuration with the built-in example calibration).
+    /// Parses configuration text; `dir` resolves relative paths (`None`: the built-in
+    /// configuration, with the built-in example calibration and the other paths relative
+    /// to the source tree's `config/`).
     pub fn parse(text: &str, path: &Path, dir: Option<&Path>) -> Result<Config, ConfigError> {
         let raw: RawConfig = toml::from_str(text).map_err(|e| ConfigError::Toml {
             path: path.to_path_buf(),
@@ -568,6 +616,8 @@ impl Config {
             ));
         }
         let controller = controller(&raw.controller).map_err(|(field, p)| invalid("controller", field, p))?;
+        let detect = detect_settings(raw.detect, dir.unwrap_or(Path::new(BUILT_IN_DIR)))
+            .map_err(|(field, p)| invalid("detect", field, p))?;
         Ok(Config {
             calibration,
             left_from_hand,
@@ -578,8 +628,31 @@ impl Config {
             model,
             fitness,
             controller,
+            detect,
         })
     }
+}
+
+fn detect_settings(raw: RawDetect, dir: &Path) -> Result<DetectSettings, (&'static str, String)> {
+    for (field, v) in [("min_score", raw.min_score), ("iou_threshold", raw.iou_threshold)] {
+        if !(v > 0.0 && v <= 1.0) {
+            return Err((field, format!("{v} must lie in (0, 1]")));
+        }
+    }
+    if raw.input_size < 32 || raw.input_size % 32 != 0 {
+        return Err((
+            "input_size",
+            format!("{} must be a positive multiple of 32", raw.input_size),
+        ));
+    }
+    Ok(DetectSettings {
+        model: dir.join(raw.model),
+        onnxruntime: dir.join(raw.onnxruntime),
+        min_score: raw.min_score,
+        iou_threshold: raw.iou_threshold,
+        input_size: raw.input_size,
+        threads: raw.threads,
+    })
 }
 
 fn toml_location(text: &str, span: Option<std::ops::Range<usize>>) -> String {
@@ -667,6 +740,8 @@ mod tests {
         assert_eq!(builtin.ga.population, 100);
         assert_eq!(builtin.fitness.e4, -1.9);
         assert_eq!(builtin.fitness, FitnessParams::default());
+        assert_eq!(builtin.detect, shipped.detect);
+        assert!(builtin.detect.model.ends_with("config/../.detect/yolov3-tiny.onnx"));
     }
 
     #[test]
@@ -674,6 +749,10 @@ mod tests {
         let c = Config::load(Some(&fixture("valid-hand-eye.toml"))).unwrap();
         assert_eq!(c.ga.mode, Mode::Paper);
         assert!((c.left_from_hand.translation.vector.x - 50.0).abs() < 1e-12);
+        let d = Config::load(Some(&fixture("valid-detect.toml"))).unwrap().detect;
+        assert_eq!(d.model, fixture("models/yolov8n.onnx"));
+        assert_eq!(d.onnxruntime, Path::new("/opt/onnxruntime/lib/libonnxruntime.so"));
+        assert_eq!((d.min_score, d.iou_threshold, d.input_size), (0.4, 0.5, 640));
     }
 
     #[test]
@@ -688,6 +767,10 @@ mod tests {
             ("invalid-syntax.toml", "line 3"),
             ("invalid-quaternion.toml", "not a unit quaternion"),
             ("invalid-missing-calibration.toml", "cannot read"),
+            (
+                "invalid-detect-score.toml",
+                "[detect] min_score: 1.5 must lie in (0, 1]",
+            ),
         ] {
             let err = Config::load(Some(&fixture(name))).unwrap_err().to_string();
             assert!(err.contains(needle), "{name}: {err}");

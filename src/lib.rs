@@ -6,7 +6,8 @@
 //! [`frame`] prepares each stereo frame's colour data and [`lookup`] packs it for the
 //! fitness; [`fitness`] scores a candidate
 //! [`pose`]; [`ga`] searches; [`estimate`] runs it end to end; [`render`] is the
-//! synthetic camera; [`overlay`] draws the result.
+//! synthetic camera; [`overlay`] draws the result; [`detect`] finds the object in the
+//! photo when no box is given.
 
 pub mod calibration;
 pub mod camera;
@@ -15,6 +16,7 @@ pub mod cli;
 pub mod client;
 pub mod color;
 pub mod config;
+pub mod detect;
 pub mod estimate;
 pub mod fitness;
 pub mod frame;

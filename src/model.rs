@@ -80,6 +80,19 @@ impl From<InnerPoint> for [f64; 5] {
     }
 }
 
+/// The detection a model's box came from (`photopose model` without `--box`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectionRecord {
+    /// COCO class name, e.g. "cup".
+    pub class: String,
+    /// Detector score, 0–1.
+    pub score: f64,
+    /// The detected box `[x, y, w, h]` in photo pixels, `(x, y)` its top-left corner
+    /// (before rounding to the model's integer box).
+    #[serde(rename = "box")]
+    pub bbox: [f64; 4],
+}
+
 /// The photo-model as stored on disk.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PhotoModel {
@@ -104,6 +117,10 @@ pub struct PhotoModel {
     pub inner: Vec<InnerPoint>,
     /// Outer strip points `[x, y]` from the box centre.
     pub outer: Vec<[f64; 2]>,
+    /// Where the box came from when a detector found it; absent for a `--box` model.
+    /// Optional in both directions: readers that predate it ignore it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub detection: Option<DetectionRecord>,
 }
 
 impl PhotoModel {
@@ -211,6 +228,7 @@ impl PhotoModel {
             center_class: center_class.into(),
             inner,
             outer,
+            detection: None,
         })
     }
 
@@ -407,6 +425,44 @@ mod tests {
         std::fs::write(&bad, "not json").unwrap();
         let e = PhotoModel::load(&bad).unwrap_err().to_string();
         assert!(e.contains("bad.model") && e.contains("not a photopose model"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn detection_is_optional_in_the_file() {
+        let photo = RgbImage::from_pixel(64, 64, Rgb([200, 40, 40]));
+        let mut m = PhotoModel::build(
+            &photo,
+            Path::new("r.png"),
+            [8, 8, 48, 40],
+            &settings(4.0),
+            &ColorClasses::default(),
+        )
+        .unwrap();
+        let plain = serde_json::to_value(&m).unwrap();
+        assert!(plain.get("detection").is_none(), "absent for a --box model");
+        m.detection = Some(DetectionRecord {
+            class: "cup".into(),
+            score: 0.59,
+            bbox: [7.6, 8.2, 48.1, 39.9],
+        });
+        let text = serde_json::to_string(&m).unwrap();
+        let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(
+            value["detection"],
+            serde_json::json!({"class": "cup", "score": 0.59, "box": [7.6, 8.2, 48.1, 39.9]})
+        );
+        assert_eq!(value["version"], 1);
+        let dir = std::env::temp_dir().join(format!("photopose-detection-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("d.model");
+        std::fs::write(&path, &text).unwrap();
+        assert_eq!(PhotoModel::load(&path).unwrap(), m);
+        // A file without the field (written before it existed) still loads.
+        let mut old = value.clone();
+        old.as_object_mut().unwrap().remove("detection");
+        std::fs::write(&path, old.to_string()).unwrap();
+        assert_eq!(PhotoModel::load(&path).unwrap().detection, None);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

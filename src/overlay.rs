@@ -1,5 +1,6 @@
 //! Pictures of a result (the paper's Fig. 9): the best model's inner points, outer
-//! strip and outline projected onto the left and right images.
+//! strip and outline projected onto the left and right images; and of a photo-model on
+//! its own photo (`photopose model --overlay`).
 
 use image::{Rgb, RgbImage};
 
@@ -26,6 +27,45 @@ pub fn draw(images: &StereoImages, scorer: &Scorer, rig: &StereoRig, model: &Pho
         draw_dots(&mut out, pts, dx, eye_w);
         for p in line.inner.iter().flatten() {
             dot(&mut out, p.x + dx, p.y, 1, OUTLINE, dx, eye_w);
+        }
+    }
+    out
+}
+
+/// The photo with the model's box (yellow), inner points (green) and outer strip
+/// (magenta) drawn on it, at the photo's pixels.
+pub fn draw_model(photo: &RgbImage, model: &PhotoModel) -> RgbImage {
+    let mut out = photo.clone();
+    let (w, h) = (photo.width() as f64, photo.height() as f64);
+    let b = model.bbox;
+    let (cx, cy) = (b.x as f64 + b.w as f64 / 2.0, b.y as f64 + b.h as f64 / 2.0);
+    // 2 × 2 pixel dots: visible, yet the photo shows between them.
+    let mut dot2 = |x: f64, y: f64, colour| {
+        for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            dot(&mut out, x - 0.5 + dx, y - 0.5 + dy, 0, colour, 0.0, w);
+        }
+    };
+    for p in &model.outer {
+        dot2(cx + p[0], cy + p[1], OUTER);
+    }
+    for p in &model.inner {
+        dot2(cx + p.x, cy + p.y, INNER);
+    }
+    let (x0, y0) = (b.x as f64, b.y as f64);
+    let (x1, y1) = ((b.x + b.w) as f64 - 1.0, (b.y + b.h) as f64 - 1.0);
+    for i in 0..=b.w.max(b.h) {
+        let t = i as f64 / b.w.max(b.h).max(1) as f64;
+        let (x, y) = (x0 + t * (x1 - x0), y0 + t * (y1 - y0));
+        for (px, py) in [(x, y0), (x, y1), (x0, y), (x1, y)] {
+            dot(
+                &mut out,
+                px.clamp(0.0, w - 1.0),
+                py.clamp(0.0, h - 1.0),
+                1,
+                OUTLINE,
+                0.0,
+                w,
+            );
         }
     }
     out
@@ -72,5 +112,39 @@ fn dot(img: &mut RgbImage, x: f64, y: f64, r: i64, colour: Rgb<u8>, x0: f64, w: 
                 img.put_pixel(xx as u32, yy as u32, colour);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::ColorClasses;
+    use crate::config::ModelSettings;
+    use std::path::Path;
+
+    #[test]
+    fn model_overlay_draws_box_and_points_on_the_photo() {
+        let photo = RgbImage::from_pixel(80, 60, Rgb([10, 10, 10]));
+        let settings = ModelSettings {
+            step_px: 6.0,
+            outer_width_px: 6.0,
+            ..ModelSettings::default()
+        };
+        let model = PhotoModel::build(
+            &photo,
+            Path::new("p.png"),
+            [20, 10, 40, 30],
+            &settings,
+            &ColorClasses::default(),
+        )
+        .expect("model");
+        let pic = draw_model(&photo, &model);
+        assert_eq!(pic.dimensions(), (80, 60));
+        assert_eq!(*pic.get_pixel(20, 10), OUTLINE, "top-left corner");
+        assert_eq!(*pic.get_pixel(59, 39), OUTLINE, "bottom-right corner");
+        let count = |c: Rgb<u8>| pic.pixels().filter(|p| **p == c).count();
+        assert!(count(INNER) >= model.inner.len(), "{} green pixels", count(INNER));
+        assert!(count(OUTER) > 0);
+        assert_eq!(*pic.get_pixel(0, 59), Rgb([10, 10, 10]), "far from the box: untouched");
     }
 }

@@ -56,7 +56,7 @@ fn tracking_frames_and_synthetic_frames_allocate_nothing() {
     let rig = config.calibration.rig(Resolution::HD).expect("HD");
     let mut renderer = Renderer::new(&rig, &config.left_from_hand, &scene);
     let start = scene.card.hand_from_model;
-    let moved = |i: usize| Translation3::new(2.0 * i as f64, -1.0 * i as f64, 0.5 * i as f64) * start;
+    let moved = |i: usize| Translation3::new(2.0 * i as f64, -(i as f64), 0.5 * i as f64) * start;
     // A few frames of the card moving 2–3 mm per frame.
     let mut frames = vec![vec![0u8; renderer.frame_len()]; 8];
     for (i, f) in frames.iter_mut().enumerate() {

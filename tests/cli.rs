@@ -6,7 +6,7 @@ use std::process::{Command, Output};
 
 use crate::scenes::data;
 
-fn photopose(args: &[&str]) -> Output {
+pub fn photopose(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_photopose"))
         .args(args)
         .env("RUST_LOG", "warn")
@@ -19,7 +19,7 @@ fn repo(rel: &str) -> String {
 }
 
 /// A fresh scratch directory under the target dir, removed by the caller's `cleanup`.
-fn scratch(name: &str) -> PathBuf {
+pub fn scratch(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("target/test-scratch")
         .join(name);
@@ -44,7 +44,7 @@ fn model_with_config(photo: &str, output: &str, config: &str) -> Output {
 }
 
 /// Asserts failure with exactly one stderr line containing every needle.
-fn fails_with(out: &Output, needles: &[&str]) {
+pub fn fails_with(out: &Output, needles: &[&str]) {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "expected failure, got success: {err}");
     assert_eq!(out.status.code(), Some(1), "{err}");

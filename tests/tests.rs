@@ -3,5 +3,6 @@
 
 mod accuracy;
 mod cli;
+mod detect;
 mod scenes;
 mod tracking;

@@ -408,6 +408,7 @@ mod tests {
             center_class: "chromatic".into(),
             inner: vec![red(-1.0, -1.0), red(1.0, -1.0), red(-1.0, 1.0), red(1.0, 1.0)],
             outer: vec![[-3.0, 0.0], [3.0, 0.0], [0.0, -3.0], [0.0, 3.0]],
+            detection: None,
         }
     }
 

@@ -217,6 +217,7 @@ mod tests {
                 v: 0,
             }],
             outer: vec![],
+            detection: None,
         }
     }
 
