@@ -91,6 +91,26 @@ impl PointSet {
         set
     }
 
+    /// Every `k`-th point of each kind (chromatic, achromatic, outer): a cheap preview.
+    pub fn every(&self, k: usize) -> Self {
+        let k = k.max(1);
+        let pick = |v: &[f32], r: std::ops::Range<usize>| v[r].iter().step_by(k).copied().collect::<Vec<_>>();
+        let pick8 = |v: &[u8], r: std::ops::Range<usize>| v[r].iter().step_by(k).copied().collect::<Vec<_>>();
+        let (c, n) = (self.chromatic, self.inner_x.len());
+        let join = |a: Vec<f32>, b: Vec<f32>| [a, b].concat();
+        let join8 = |a: Vec<u8>, b: Vec<u8>| [a, b].concat();
+        let chromatic = pick(&self.inner_x, 0..c).len();
+        Self {
+            inner_x: join(pick(&self.inner_x, 0..c), pick(&self.inner_x, c..n)),
+            inner_y: join(pick(&self.inner_y, 0..c), pick(&self.inner_y, c..n)),
+            inner_code: join8(pick8(&self.inner_code, 0..c), pick8(&self.inner_code, c..n)),
+            inner_sat: join8(pick8(&self.inner_sat, 0..c), pick8(&self.inner_sat, c..n)),
+            chromatic,
+            outer_x: pick(&self.outer_x, 0..self.outer_x.len()),
+            outer_y: pick(&self.outer_y, 0..self.outer_y.len()),
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.inner_x.len() + self.outer_x.len()
     }

@@ -15,6 +15,10 @@ const SIZES: usize = 8;
 const LARGEST_FRACTION: f64 = 0.6;
 /// In-plane rotations, evenly spaced over the full turn.
 const ROLLS: usize = 8;
+/// The first pass scores every placement with one point in `SPARSE`; the `RESCORE` best
+/// are then scored with every point.
+const SPARSE: usize = 4;
+const RESCORE: usize = 4096;
 /// Distinct placements kept for the depth scan, and depths tried for each.
 const KEEP: usize = 48;
 const DEPTHS: usize = 40;
@@ -81,12 +85,29 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
             }));
         }
     }
-    let mut scores = vec![0.0; placements.len()];
-    problem.par_fill(&placements, &mut scores, |pl| {
-        problem.scorer.evaluate_left(points, lv, &pl.candidate(problem, z_ref))
+    // A cheap pass with a quarter of the points, then every point for the most promising.
+    let sparse = points.every(SPARSE);
+    let mut rough = vec![0.0; placements.len()];
+    problem.par_fill(&placements, &mut rough, |pl| {
+        problem.scorer.evaluate_left(&sparse, lv, &pl.candidate(problem, z_ref))
     });
     let mut order: Vec<usize> = (0..placements.len()).collect();
-    order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]));
+    let promising = RESCORE.min(order.len());
+    if promising < order.len() {
+        order.select_nth_unstable_by(promising, |&a, &b| rough[b].total_cmp(&rough[a]));
+        order.truncate(promising);
+    }
+    let mut exact = vec![0.0; order.len()];
+    problem.par_fill(&order, &mut exact, |&i| {
+        problem
+            .scorer
+            .evaluate_left(points, lv, &placements[i].candidate(problem, z_ref))
+    });
+    let mut scores = vec![f64::NEG_INFINITY; placements.len()];
+    for (&i, &f) in order.iter().zip(&exact) {
+        scores[i] = f;
+    }
+    order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]).then(a.cmp(&b)));
     // Keep distinct placements: not within a few pixels of a better one of similar size.
     let mut kept: Vec<Placement> = Vec::with_capacity(KEEP);
     for &i in &order {
