@@ -32,20 +32,22 @@ struct Placement {
     ray: Vector3<f64>,
     /// Model length over depth (`L / z`), i.e. apparent size over the focal length.
     l_over_z: f64,
-    roll: f64,
+    /// The in-plane rotation (about the line of sight).
+    roll: UnitQuaternion<f64>,
 }
 
 impl Placement {
-    fn candidate(&self, problem: &Problem, z: f64) -> PoseSize {
-        let p = self.ray * z;
-        let left_from_model = Isometry3::from_parts(
-            Translation3::from(p),
-            UnitQuaternion::from_scaled_axis(Vector3::z() * self.roll),
-        );
-        let hand_from_model = problem.scorer.left_from_hand.inverse() * left_from_model;
+    /// The candidate at depth `z`; `hand_from_left` is the inverse hand-eye transform.
+    fn candidate(&self, problem: &Problem, hand_from_left: &Isometry3<f64>, z: f64) -> PoseSize {
+        let left_from_model = Isometry3::from_parts(Translation3::from(self.ray * z), self.roll);
         let [l_p, b_p] = problem.scorer.box_px;
         let length = self.l_over_z * z;
-        PoseSize::from_pose(&hand_from_model, [length, length * b_p / l_p], l_p, b_p)
+        PoseSize::from_pose(
+            &(hand_from_left * left_from_model),
+            [length, length * b_p / l_p],
+            l_p,
+            b_p,
+        )
     }
 }
 
@@ -58,6 +60,7 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
     let fx_full = lv.rig.left.fx / lv.scale;
     let b = &problem.bounds;
     let z_ref = (b.lo[2] * b.hi[2]).sqrt();
+    let hand_from_left = problem.scorer.left_from_hand.inverse();
     // Apparent model lengths from the smallest allowed extent to a large share of the image.
     let smallest = problem.scorer.min_extent_px.max(16.0) / fx_full;
     let largest = LARGEST_FRACTION * (lv.rig.height as f64 / lv.scale) / fx_full;
@@ -75,7 +78,8 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
     for si in 0..SIZES {
         let l_over_z = smallest * (largest / smallest).powf(si as f64 / (SIZES - 1) as f64);
         for ri in 0..ROLLS {
-            let roll = std::f64::consts::TAU * ri as f64 / ROLLS as f64;
+            let roll =
+                UnitQuaternion::from_scaled_axis(Vector3::z() * (std::f64::consts::TAU * ri as f64 / ROLLS as f64));
             placements.extend(pixels.iter().map(|&(u, v, ray)| Placement {
                 u,
                 v,
@@ -89,7 +93,9 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
     let sparse = points.every(SPARSE);
     let mut rough = vec![0.0; placements.len()];
     problem.par_fill(&placements, &mut rough, |pl| {
-        problem.scorer.evaluate_left(&sparse, lv, &pl.candidate(problem, z_ref))
+        problem
+            .scorer
+            .evaluate_left(&sparse, lv, &pl.candidate(problem, &hand_from_left, z_ref))
     });
     let mut order: Vec<usize> = (0..placements.len()).collect();
     let promising = RESCORE.min(order.len());
@@ -101,7 +107,7 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
     problem.par_fill(&order, &mut exact, |&i| {
         problem
             .scorer
-            .evaluate_left(points, lv, &placements[i].candidate(problem, z_ref))
+            .evaluate_left(points, lv, &placements[i].candidate(problem, &hand_from_left, z_ref))
     });
     let mut scores = vec![f64::NEG_INFINITY; placements.len()];
     for (&i, &f) in order.iter().zip(&exact) {
@@ -130,7 +136,10 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
     let trials: Vec<(Placement, f64)> = kept.iter().flat_map(|p| depths.iter().map(move |&z| (*p, z))).collect();
     let mut fits = vec![0.0; trials.len()];
     problem.par_fill(&trials, &mut fits, |(pl, z)| {
-        problem.scorer.evaluate(points, lv, &pl.candidate(problem, *z)).score
+        problem
+            .scorer
+            .evaluate(points, lv, &pl.candidate(problem, &hand_from_left, *z))
+            .score
     });
     let mut order: Vec<usize> = (0..trials.len()).collect();
     order.sort_by(|&a, &b| fits[b].total_cmp(&fits[a]));
@@ -139,7 +148,7 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
         .take(n)
         .map(|i| {
             let (pl, z) = trials[i];
-            b.encode(&pl.candidate(problem, z))
+            b.encode(&pl.candidate(problem, &hand_from_left, z))
         })
         .collect()
 }
