@@ -285,6 +285,16 @@ impl Record {
         }
     }
 
+    /// The camera's frame rate so far.
+    fn fps(&self) -> f64 {
+        match (self.truth.values().next(), self.truth.values().next_back()) {
+            (Some(a), Some(b)) if b.capture_time_ns > a.capture_time_ns => {
+                (self.truth.len() - 1) as f64 / ((b.capture_time_ns - a.capture_time_ns) as f64 * 1e-9)
+            }
+            _ => 0.0,
+        }
+    }
+
     fn status(&self, elapsed: f64, controller: Option<&str>, live: bool) {
         let errors = Samples::new(self.tracked().map(|(p, t, _)| position_error(p, t)));
         let latency = Samples::new(
@@ -298,8 +308,9 @@ impl Record {
             .map(|(p, _)| crate::client::status_name(p.status))
             .unwrap_or_else(|| "acquiring".into());
         let line = format!(
-            "{elapsed:5.1} s | frames {:5} | poses {:5} dropped {:3} | {state} | error {:5.1} mm (p95 {:5.1}) | capture→pose p50 {:5.1} ms p99 {:5.1} ms",
+            "{elapsed:5.1} s | frames {:5} ({:4.1} fps) | poses {:5} dropped {:3} | {state} | error {:5.1} mm (p95 {:5.1}) | capture→pose p50 {:5.1} ms p99 {:5.1} ms",
             self.truth.len(),
+            self.fps(),
             self.poses.len(),
             self.dropped().0,
             errors.median(),
