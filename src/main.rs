@@ -32,6 +32,8 @@ enum Command {
     Controller(cli::controller::ControllerArgs),
     /// Run capture, estimator and controller on the synthetic camera; summary and plot.
     Demo(cli::demo::DemoArgs),
+    /// Measure the fitness kernel, a one-shot estimate and the tracking loop.
+    Bench(cli::bench::BenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -48,6 +50,7 @@ fn main() -> ExitCode {
         Command::Estimator(a) => cli::estimator::run(a),
         Command::Controller(a) => cli::controller::run(a),
         Command::Demo(a) => cli::demo::run(a),
+        Command::Bench(a) => cli::bench::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

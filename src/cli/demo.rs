@@ -15,10 +15,8 @@ use anyhow::{anyhow, Context, Result};
 
 use crate::capture::DEFAULT_SCENE;
 use crate::config::Config;
-use crate::frame::load_rgb;
 use crate::ipc::Ipc;
 use crate::messages::{monotonic_ns, status, PoseMsg, POSES_SERVICE, TRUTH_SERVICE};
-use crate::model::PhotoModel;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::render::SceneSpec;
 use crate::stats::Samples;
@@ -53,7 +51,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let config = Config::load(args.config.as_deref())?;
     let spec = SceneSpec::load(&args.scene)?;
     let model_path = std::env::temp_dir().join(format!("photopose-demo-{}.model", std::process::id()));
-    build_model(&spec, &config, &model_path)?;
+    super::scene_model(&spec, &config)?.save(&model_path)?;
     let ipc = Ipc::new("photopose-demo")?;
     let poses = ipc.pose_subscriber(POSES_SERVICE)?;
     let truths = ipc.pose_subscriber(TRUTH_SERVICE)?;
@@ -136,20 +134,6 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     plot::save(&plot, &args.plot)?;
     println!("trajectory plot: {}", args.plot.display());
     Ok(())
-}
-
-/// Writes the photo-model of the scene's photo and box to `path` for the estimator.
-fn build_model(spec: &SceneSpec, config: &Config, path: &Path) -> Result<()> {
-    let photo = load_rgb(&spec.photo)?;
-    let [x, y, w, h] = spec.box_px.map(i64::from);
-    let model = PhotoModel::build(
-        &photo,
-        &spec.photo,
-        [x, y, w, h],
-        &config.model,
-        &config.fitness.classes(),
-    )?;
-    Ok(model.save(path)?)
 }
 
 /// The child processes, stopped (SIGTERM, then SIGKILL) when dropped.

@@ -1,5 +1,6 @@
 //! The `photopose` command line: one module per subcommand.
 
+pub mod bench;
 pub mod capture;
 pub mod controller;
 pub mod demo;
@@ -12,6 +13,11 @@ use std::io::IsTerminal;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::config::Config;
+use crate::frame::load_rgb;
+use crate::model::PhotoModel;
+use crate::render::SceneSpec;
+
 /// A progress bar on an interactive terminal, hidden otherwise (logs, CI, pipes).
 pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
     if !std::io::stderr().is_terminal() {
@@ -23,4 +29,17 @@ pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
     }
     bar.set_message(what.to_string());
     bar
+}
+
+/// The photo-model of a scene's photo and box (the synthetic camera's target).
+pub fn scene_model(spec: &SceneSpec, config: &Config) -> anyhow::Result<PhotoModel> {
+    let photo = load_rgb(&spec.photo)?;
+    let [x, y, w, h] = spec.box_px.map(i64::from);
+    Ok(PhotoModel::build(
+        &photo,
+        &spec.photo,
+        [x, y, w, h],
+        &config.model,
+        &config.fitness.classes(),
+    )?)
 }

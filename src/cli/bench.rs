@@ -1,0 +1,193 @@
+//! `photopose bench`: how fast the estimator is on this machine. The fitness kernel on
+//! one frame (one thread and all), a one-shot 1000-generation estimate, and the
+//! per-frame time of the tracking loop on a synthetic HD sequence.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{anyhow, Result};
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use serde::Serialize;
+
+use crate::capture::synthetic::SyntheticSource;
+use crate::capture::{FrameSource, DEFAULT_SCENE};
+use crate::config::Config;
+use crate::estimate::{self, Prepared};
+use crate::fitness::Fitness;
+use crate::frame::StereoImages;
+use crate::ga::robust::view_sample;
+use crate::ga::{Genes, Problem};
+use crate::lookup::SbsBytes;
+use crate::model::PhotoModel;
+use crate::render::SceneSpec;
+use crate::stats::Samples;
+use crate::tracking::StreamTracker;
+
+/// Measure the fitness kernel, a one-shot estimate and the tracking loop.
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Side-by-side frame the kernel and the one-shot estimate run on.
+    #[arg(long, value_name = "FRAME.png")]
+    pub sbs: PathBuf,
+    /// Photo-model matching that frame.
+    #[arg(long, value_name = "MODEL")]
+    pub model: PathBuf,
+    /// Configuration file; built-in defaults otherwise.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Individuals evaluated for the kernel figures.
+    #[arg(long, default_value_t = 20_000)]
+    pub individuals: usize,
+    /// Threads of the multi-threaded run (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Frames of the synthetic sequence for the tracking figures.
+    #[arg(long, default_value_t = 300)]
+    pub frames: usize,
+    /// Scene of the synthetic sequence (its photo becomes the tracked model).
+    #[arg(long, value_name = "SCENE.toml", default_value = DEFAULT_SCENE)]
+    pub scene: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What `--json` prints.
+#[derive(Debug, Serialize)]
+struct Report {
+    threads: usize,
+    points_per_individual: usize,
+    individuals_per_s_1t: f64,
+    points_per_s_1t: f64,
+    ns_per_point_1t: f64,
+    individuals_per_s_all: f64,
+    points_per_s_all: f64,
+    ns_per_point_all: f64,
+    oneshot_1000_s: f64,
+    tracking_frames: usize,
+    tracking_acquisition_s: f64,
+    tracking_frame_p50_ms: f64,
+    tracking_frame_p99_ms: f64,
+    tracking_frame_max_ms: f64,
+}
+
+pub fn run(args: &BenchArgs) -> Result<()> {
+    if args.individuals == 0 || args.frames < 2 {
+        return Err(anyhow!("--individuals must be ≥ 1 and --frames ≥ 2"));
+    }
+    let config = Config::load(args.config.as_deref())?;
+    let model = PhotoModel::load(&args.model)?;
+    let images = StereoImages::load_sbs(&args.sbs)?;
+    let say = |line: String| {
+        if !args.json {
+            println!("{line}");
+        }
+    };
+
+    // The kernel: candidates the cameras can see (random pixel, depth, size, tilt).
+    let prepared = Prepared::new(&model, &images, &config)?;
+    let points = prepared.points[0].len();
+    let per_individual = 2 * points;
+    let one = Problem::new(&prepared.scorer, &prepared.levels, &prepared.points, prepared.bounds, 1);
+    let mut rng = StdRng::seed_from_u64(config.ga.seed);
+    let genes: Vec<Genes> = (0..args.individuals).map(|_| view_sample(&one, &mut rng)).collect();
+    let all = Problem::new(
+        &prepared.scorer,
+        &prepared.levels,
+        &prepared.points,
+        prepared.bounds,
+        args.threads,
+    );
+    let threads = all.workers.threads();
+    say(format!(
+        "fitness on {} ({} points: {per_individual} point evaluations per individual, both images)",
+        args.sbs.display(),
+        points
+    ));
+    let [(ind_1, pts_1, ns_1), (ind_n, pts_n, ns_n)] = [&one, &all].map(|problem| {
+        let mut out = vec![Fitness::default(); genes.len()];
+        problem.evaluate_batch(0, &genes, &mut out); // warm-up: caches, thread pool
+        let start = Instant::now();
+        problem.evaluate_batch(0, &genes, &mut out);
+        let s = start.elapsed().as_secs_f64();
+        let evaluated = (genes.len() * per_individual) as f64;
+        (genes.len() as f64 / s, evaluated / s, s * 1e9 / evaluated)
+    });
+    say(format!(
+        "  1 thread : {:>8.0} individuals/s, {:>6.1} M point evaluations/s, {ns_1:.2} ns per point",
+        ind_1,
+        pts_1 * 1e-6
+    ));
+    say(format!(
+        "  {threads} threads: {:>8.0} individuals/s, {:>6.1} M point evaluations/s, {ns_n:.2} ns per point",
+        ind_n,
+        pts_n * 1e-6
+    ));
+
+    // One-shot estimate, frame preparation included.
+    let start = Instant::now();
+    let outcome = estimate::run(&model, &images, &config, 1000, config.ga.seed, &mut |_| {})?;
+    let oneshot = start.elapsed().as_secs_f64();
+    say(format!(
+        "one-shot estimate, 1000 generations ({:?} mode): {oneshot:.3} s ({} evaluations, F {:.3})",
+        config.ga.mode, outcome.evaluations, outcome.fitness.f
+    ));
+
+    // Tracking on a synthetic sequence, rendering excluded.
+    let spec = SceneSpec::load(&args.scene)?;
+    let tracked = super::scene_model(&spec, &config)?;
+    let mut source = SyntheticSource::open(&args.scene, &config, 60.0, 150.0)?;
+    let geometry = source.geometry();
+    let mut buf = vec![0u8; geometry.frame_len()];
+    let mut tracker = StreamTracker::new(tracked, config.clone());
+    let mut times = Vec::with_capacity(args.frames);
+    let mut acquisition = 0.0;
+    for i in 0..args.frames {
+        source.fill(&mut buf)?;
+        let frame = SbsBytes {
+            bytes: &buf,
+            width: geometry.width as usize,
+            height: geometry.height as usize,
+            row_stride: geometry.row_stride(),
+        };
+        let start = Instant::now();
+        tracker.prepare(&frame)?;
+        tracker.step();
+        let s = start.elapsed().as_secs_f64();
+        if i == 0 {
+            acquisition = s;
+        } else {
+            times.push(s * 1e3);
+        }
+    }
+    let frames = Samples::new(times);
+    say(format!(
+        "tracking {} (HD 60 fps, up to 150 mm/s), {} frames: acquisition {acquisition:.2} s, then per frame p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms",
+        args.scene.display(),
+        args.frames,
+        frames.median(),
+        frames.percentile(99.0),
+        frames.max()
+    ));
+    if args.json {
+        let report = Report {
+            threads,
+            points_per_individual: per_individual,
+            individuals_per_s_1t: ind_1,
+            points_per_s_1t: pts_1,
+            ns_per_point_1t: ns_1,
+            individuals_per_s_all: ind_n,
+            points_per_s_all: pts_n,
+            ns_per_point_all: ns_n,
+            oneshot_1000_s: oneshot,
+            tracking_frames: args.frames,
+            tracking_acquisition_s: acquisition,
+            tracking_frame_p50_ms: frames.median(),
+            tracking_frame_p99_ms: frames.percentile(99.0),
+            tracking_frame_max_ms: frames.max(),
+        };
+        println!("{}", serde_json::to_string(&report)?);
+    }
+    Ok(())
+}
