@@ -217,6 +217,9 @@ pub struct TrackingSettings {
     /// 1: every model point; 2: one point per 2×2 block of the grid, with the block's mean
     /// colour (a quarter of the work).
     pub point_stride: usize,
+    /// Fitness threads of a tracking frame (0: one per core). A frame's work is small:
+    /// waking other threads for each generation can cost more than it saves.
+    pub threads: usize,
     /// Gaussian mutation step, in normalised gene units.
     pub sigma: f64,
     /// Below this `F` the object counts as not tracked (status `searching`).
@@ -235,6 +238,7 @@ impl Default for TrackingSettings {
             population: 40,
             generations_per_frame: 6,
             point_stride: 2,
+            threads: 1,
             sigma: 0.003,
             min_fitness: 1.0,
             immigrants: 0.2,

@@ -1,10 +1,16 @@
 //! iceoryx2 plumbing shared by every process: one node per process, the three services
 //! of DESIGN §4 opened with the same settings by publishers and subscribers (so any
 //! start order works), and clean-up of what crashed processes left behind.
+//!
+//! Beside each publish-subscribe service an event service of the same name wakes the
+//! subscribers when a sample was sent ([`Wake`]), so they need not poll. Clients that do
+//! not listen (Python, C++) lose nothing: the samples are there either way.
 
 use std::time::Duration;
 
 use anyhow::{anyhow, Context, Result};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
@@ -118,6 +124,55 @@ impl Ipc {
             .subscriber_builder()
             .create()
             .map_err(|e| anyhow!("cannot subscribe to {service}: {e:?}"))
+    }
+}
+
+/// Event ports of a service's wake-up events.
+pub type Wake = Listener<Transport>;
+pub type Waker = Notifier<Transport>;
+
+impl Ipc {
+    fn events(&self, service: &str) -> Result<iceoryx2::service::port_factory::event::PortFactory<Transport>> {
+        self.node
+            .service_builder(&Self::service_name(service)?)
+            .event()
+            .max_notifiers(4)
+            .max_listeners(16)
+            .open_or_create()
+            .map_err(|e| anyhow!("cannot open the events of {service}: {e:?}"))
+    }
+
+    /// Wakes the listeners of `service` ([`Ipc::wake`]) after each send.
+    pub fn waker(&self, service: &str) -> Result<Waker> {
+        self.events(service)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| anyhow!("cannot notify on {service}: {e:?}"))
+    }
+
+    /// Woken when a sample was sent on `service`.
+    pub fn wake(&self, service: &str) -> Result<Wake> {
+        self.events(service)?
+            .listener_builder()
+            .create()
+            .map_err(|e| anyhow!("cannot listen on {service}: {e:?}"))
+    }
+
+    /// Sleeps until `wake` fires or `timeout` passes; false once the process was asked to
+    /// terminate.
+    pub fn wait_for(&self, wake: &Wake, timeout: Duration) -> bool {
+        if wake.timed_wait(|_| {}, timeout).is_err() {
+            // Interrupted (a signal) or broken: fall back to the node's own wait.
+            return self.wait(Duration::from_millis(1));
+        }
+        self.wait(Duration::ZERO)
+    }
+}
+
+/// Tells the listeners that a sample was sent; a failure only costs them a poll period.
+pub fn wake_up(waker: &Waker) {
+    if let Err(e) = waker.notify() {
+        tracing::debug!("cannot notify listeners: {e:?}");
     }
 }
 

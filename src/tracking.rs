@@ -312,10 +312,10 @@ impl StreamTracker {
 
     /// Searches the prepared frame; `None` when no frame was prepared.
     pub fn step(&mut self) -> Option<Estimate> {
-        let threads = self.config.ga.threads;
         Some(match self.ready.take()? {
             Ready::Regions => {
                 let regions = std::slice::from_ref(self.regions.as_ref()?);
+                let threads = self.config.tracking.threads;
                 let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
                 self.tracker.step(&problem)
             }

@@ -12,8 +12,8 @@ use crate::capture::replay::ReplaySource;
 use crate::capture::synthetic::SyntheticSource;
 use crate::capture::{FrameSource, Source};
 use crate::config::Config;
-use crate::ipc::{send_pose, Ipc};
-use crate::messages::{FrameHeader, TRUTH_SERVICE};
+use crate::ipc::{send_pose, wake_up, Ipc};
+use crate::messages::{FrameHeader, FRAMES_SERVICE, TRUTH_SERVICE};
 
 /// Publish stereo frames.
 #[derive(clap::Args, Debug)]
@@ -70,6 +70,7 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
     };
     let ipc = Ipc::new("photopose-capture")?;
     let frames = ipc.frame_publisher(geometry.frame_len())?;
+    let waker = ipc.waker(FRAMES_SERVICE)?;
     let truth = ipc.pose_publisher(TRUTH_SERVICE)?;
     tracing::info!("capture: {}", source.describe());
 
@@ -104,6 +105,7 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
         sample
             .send()
             .map_err(|e| anyhow!("cannot send frame {frame_id}: {e:?}"))?;
+        wake_up(&waker);
         if let Some(t) = &info.truth {
             send_pose(&truth, t.pose_msg(frame_id, info.capture_time_ns))?;
         }

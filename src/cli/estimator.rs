@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Result};
 
 use crate::config::Config;
-use crate::ipc::{send_pose, Ipc};
+use crate::ipc::{send_pose, wake_up, Ipc};
 use crate::lookup::SbsBytes;
-use crate::messages::{monotonic_ns, pixel_format, FrameHeader, POSES_SERVICE};
+use crate::messages::{monotonic_ns, pixel_format, FrameHeader, FRAMES_SERVICE, POSES_SERVICE};
 use crate::model::PhotoModel;
 use crate::tracking::StreamTracker;
 
@@ -34,12 +34,14 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
     let ipc = Ipc::new("photopose-estimator")?;
     let frames = ipc.frame_subscriber()?;
     let poses = ipc.pose_publisher(POSES_SERVICE)?;
+    let (wake, waker) = (ipc.wake(FRAMES_SERVICE)?, ipc.waker(POSES_SERVICE)?);
     let mut tracker = StreamTracker::new(model, config);
     let start = Instant::now();
     let mut last_id: Option<u64> = None;
     let (mut processed, mut dropped) = (0u64, 0u64);
     let mut report = Instant::now();
-    while ipc.wait(Duration::from_millis(1)) {
+    // Woken by the camera; the timeout only bounds how late a stop request is noticed.
+    while ipc.wait_for(&wake, Duration::from_millis(50)) {
         if args.seconds > 0.0 && start.elapsed().as_secs_f64() >= args.seconds {
             break;
         }
@@ -79,6 +81,7 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
         let mut pose = tracker.pose_msg(&est, header.frame_id, header.capture_time_ns);
         pose.publish_time_ns = monotonic_ns();
         send_pose(&poses, pose)?;
+        wake_up(&waker);
         processed += 1;
         if report.elapsed() >= Duration::from_secs(2) {
             tracing::info!(
