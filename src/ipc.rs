@@ -67,8 +67,13 @@ impl Ipc {
 
     /// The frames service.
     pub fn frames(&self) -> Result<PortFactory<Transport, [u8], FrameHeader>> {
+        self.frames_on(FRAMES_SERVICE)
+    }
+
+    /// A frames service of another name, with the same settings (tools, tests).
+    pub fn frames_on(&self, service: &str) -> Result<PortFactory<Transport, [u8], FrameHeader>> {
         self.node
-            .service_builder(&Self::service_name(FRAMES_SERVICE)?)
+            .service_builder(&Self::service_name(service)?)
             .publish_subscribe::<[u8]>()
             .user_header::<FrameHeader>()
             .subscriber_max_buffer_size(FRAME_BUFFER)
@@ -77,7 +82,7 @@ impl Ipc {
             .max_publishers(2)
             .max_subscribers(8)
             .open_or_create()
-            .map_err(|e| anyhow!("cannot open {FRAMES_SERVICE}: {e:?}"))
+            .map_err(|e| anyhow!("cannot open {service}: {e:?}"))
     }
 
     /// A pose service ([`crate::messages::POSES_SERVICE`] or [`crate::messages::TRUTH_SERVICE`]).

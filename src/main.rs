@@ -34,6 +34,8 @@ enum Command {
     Demo(cli::demo::DemoArgs),
     /// Measure the fitness kernel, a one-shot estimate and the tracking loop.
     Bench(cli::bench::BenchArgs),
+    /// Measure transport, estimation and end-to-end latency of the running service.
+    Latency(cli::latency::LatencyArgs),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +53,7 @@ fn main() -> ExitCode {
         Command::Controller(a) => cli::controller::run(a),
         Command::Demo(a) => cli::demo::run(a),
         Command::Bench(a) => cli::bench::run(a),
+        Command::Latency(a) => cli::latency::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

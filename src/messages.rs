@@ -83,6 +83,8 @@ pub struct FrameHeader {
     pub pixel_format: u32,
     /// Bytes per row of the side-by-side image.
     pub row_stride: u32,
+    /// CLOCK_MONOTONIC just before the frame was sent, ns (transport latency).
+    pub publish_time_ns: u64,
 }
 
 /// Tracking status of a [`PoseMsg`].
@@ -152,7 +154,8 @@ mod tests {
 
     #[test]
     fn frame_header_layout_is_fixed() {
-        assert_eq!(size_of::<FrameHeader>(), 32);
+        assert_eq!(size_of::<FrameHeader>(), 40);
+        assert_eq!(align_of::<FrameHeader>(), 8);
         let offsets = [
             offset_of!(FrameHeader, frame_id),
             offset_of!(FrameHeader, capture_time_ns),
@@ -160,8 +163,9 @@ mod tests {
             offset_of!(FrameHeader, height),
             offset_of!(FrameHeader, pixel_format),
             offset_of!(FrameHeader, row_stride),
+            offset_of!(FrameHeader, publish_time_ns),
         ];
-        assert_eq!(offsets, [0, 8, 16, 20, 24, 28]);
+        assert_eq!(offsets, [0, 8, 16, 20, 24, 28, 32]);
     }
 
     #[test]

@@ -13,7 +13,7 @@ use crate::capture::synthetic::SyntheticSource;
 use crate::capture::{FrameSource, Source};
 use crate::config::Config;
 use crate::ipc::{send_pose, wake_up, Ipc};
-use crate::messages::{FrameHeader, FRAMES_SERVICE, TRUTH_SERVICE};
+use crate::messages::{monotonic_ns, FrameHeader, FRAMES_SERVICE, TRUTH_SERVICE};
 
 /// Publish stereo frames.
 #[derive(clap::Args, Debug)]
@@ -98,10 +98,12 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
             height: geometry.height,
             pixel_format: geometry.format.code(),
             row_stride: geometry.row_stride() as u32,
+            publish_time_ns: 0,
         };
         if let Some(rec) = recorder.as_mut() {
             rec.record(frame_id, &info, sample.payload())?;
         }
+        sample.user_header_mut().publish_time_ns = monotonic_ns();
         sample
             .send()
             .map_err(|e| anyhow!("cannot send frame {frame_id}: {e:?}"))?;

@@ -6,6 +6,7 @@ pub mod controller;
 pub mod demo;
 pub mod estimate;
 pub mod estimator;
+pub mod latency;
 pub mod model;
 pub mod render;
 
