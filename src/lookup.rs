@@ -1,8 +1,9 @@
-//! Lookup images: what the fitness reads per pixel (colour code, saturation and the
-//! outer-point verdict) packed into one `u32`, with a ring of outside texels around the
-//! covered region. The kernel clamps a projected point onto the padded region instead
-//! of branching on whether it is inside: a point off the region lands on the ring and
-//! reads "outside".
+//! Lookup images: what the fitness reads per pixel (colour code and saturation, or
+//! the raw hue for the paper's outer test) packed into one `u16`, with a ring of outside
+//! texels around the covered region. The kernel clamps a projected point onto the
+//! padded region instead of branching on whether it is inside: a point off the region
+//! lands on the ring and reads "outside". Two bytes per pixel keep an HD image's texels
+//! at 1.8 MB, so the kernel's scattered reads hit the caches more often.
 //!
 //! A lookup image covers either a whole image (one-shot estimates) or only a region of
 //! interest around the predicted pose (tracking), converted straight from the frame's
@@ -11,8 +12,7 @@
 use rayon::prelude::*;
 
 use crate::camera::StereoRig;
-use crate::color::{hue_distance, ColorClasses, BLACK, GRAY, WHITE};
-use crate::fitness::OuterRule;
+use crate::color::{ColorClasses, BLACK, GRAY, WHITE};
 use image::RgbImage;
 
 use crate::frame::{coarse_levels, ColorPlane, FrameLevel, PixelColor, Region, StereoImages};
@@ -21,62 +21,53 @@ use crate::frame::{coarse_levels, ColorPlane, FrameLevel, PixelColor, Region, St
 /// points, counts as target (a mismatch), as points outside an image do.
 pub const OUTSIDE: u8 = 255;
 
-/// What the fitness reads per pixel, packed in one `u32`: bits 0–7 the [`crate::color`]
-/// code (or [`OUTSIDE`]), bits 8–15 the saturation, bit 16 ([`TARGET_BIT`]) set when an
-/// outer point on this pixel sees the target (eq. 16's `e4` case).
-pub type Texel = u32;
+/// What the fitness reads per pixel: bits 0–7 the [`crate::color`] code (or
+/// [`OUTSIDE`]), bits 8–15 the second byte of the [`TexelRule`] (the saturation, or the
+/// raw OpenCV hue).
+pub type Texel = u16;
 
-/// Bit of [`Texel`] marking a pixel that looks like the target to an outer point.
-pub const TARGET_BIT: Texel = 1 << 16;
-
-/// Packs a pixel's colour code, saturation and outer-point verdict.
+/// Packs a pixel's colour code and second byte.
 #[inline(always)]
-pub fn texel(code: u8, sat: u8, target: bool) -> Texel {
-    code as Texel | (sat as Texel) << 8 | (target as Texel) << 16
+pub fn texel(code: u8, second: u8) -> Texel {
+    code as Texel | (second as Texel) << 8
 }
 
 /// The texel of the ring around the image.
-pub const OUTSIDE_TEXEL: Texel = OUTSIDE as Texel | TARGET_BIT;
+pub const OUTSIDE_TEXEL: Texel = OUTSIDE as Texel;
 
 /// The fitness kernel computes indices in `f32` and rounds with the 2²³ trick, so a
 /// padded image holds fewer texels than this (2K has 2.7 M).
 pub const MAX_TEXELS: usize = 1 << 23;
 
-/// How a pixel's colour becomes a texel: the Table 1 classes and the outer-point test
-/// of the model being searched for (eq. 16, or robust mode's colour-class test).
+/// What a texel's second byte holds: what the outer test of the search needs besides
+/// the colour code.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SecondByte {
+    /// The saturation (robust mode: saturation-aware matches and colour-class outer test).
+    Saturation,
+    /// The raw OpenCV hue, 0 for grey pixels (paper mode: eq. 16 on the raw hue).
+    RawHue,
+}
+
+/// How a pixel's colour becomes a texel: the Table 1 classes and the second byte.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TexelRule {
     pub classes: ColorClasses,
-    pub outer: OuterRule,
-    /// `H̄_in` as an OpenCV hue, and the outer test's hue threshold.
-    pub mean_hue: u8,
-    pub hue_threshold: u8,
-    /// The central rectangle's colour code and mean saturation, and the saturation
-    /// tolerance of the colour-class test.
-    pub center_code: u8,
-    pub center_sat: u8,
-    pub sat_tolerance: u8,
+    pub second: SecondByte,
 }
 
 impl TexelRule {
     /// The texel of a pixel with colour code `code`, saturation `sat` and raw OpenCV hue
-    /// `hue`. Branch-free, so row loops over it vectorise.
+    /// `hue`.
     #[inline(always)]
     pub fn texel(&self, code: u8, sat: u8, hue: u8) -> Texel {
-        let chromatic = code < 180;
-        let raw = hue_distance(hue, self.mean_hue) < self.hue_threshold;
-        let class = if self.center_code < 180 {
-            chromatic
-                & (hue_distance(code, self.mean_hue) < self.hue_threshold)
-                & (sat.abs_diff(self.center_sat) <= self.sat_tolerance)
-        } else {
-            code == self.center_code
-        };
-        let target = match self.outer {
-            OuterRule::RawHue => raw,
-            OuterRule::ColorClass => class,
-        };
-        texel(code, sat, target)
+        texel(
+            code,
+            match self.second {
+                SecondByte::Saturation => sat,
+                SecondByte::RawHue => hue,
+            },
+        )
     }
 
     /// The texel of one pixel's [`PixelColor`].
@@ -134,23 +125,11 @@ impl TexelRule {
         let achromatic = if v >= c.white_v_min as u32 { WHITE } else { GRAY } as u32;
         let light = if s <= c.achromatic_s_max as u32 { achromatic } else { h };
         let code = if v <= c.black_v_max as u32 { BLACK as u32 } else { light };
-        let hue_gap = |a: u32| {
-            let d = a.abs_diff(self.mean_hue as u32);
-            d.min(180 - d.min(180))
+        let second = match self.second {
+            SecondByte::Saturation => s,
+            SecondByte::RawHue => h,
         };
-        let threshold = self.hue_threshold as u32;
-        let class = if self.center_code < 180 {
-            (code < 180)
-                & (hue_gap(code) < threshold)
-                & (s.abs_diff(self.center_sat as u32) <= self.sat_tolerance as u32)
-        } else {
-            code == self.center_code as u32
-        };
-        let target = match self.outer {
-            OuterRule::RawHue => hue_gap(h) < threshold,
-            OuterRule::ColorClass => class,
-        };
-        code | s << 8 | (target as Texel) << 16
+        (code | second << 8) as Texel
     }
 }
 
@@ -373,15 +352,10 @@ mod tests {
     use super::*;
     use crate::color::rgb_to_hsv;
 
-    fn rule(outer: OuterRule, center_code: u8) -> TexelRule {
+    fn rule(second: SecondByte) -> TexelRule {
         TexelRule {
             classes: ColorClasses::default(),
-            outer,
-            mean_hue: 10,
-            hue_threshold: 15,
-            center_code,
-            center_sat: 150,
-            sat_tolerance: 50,
+            second,
         }
     }
 
@@ -394,36 +368,31 @@ mod tests {
                 .map(|i| PixelColor {
                     code: i as u8,
                     sat: 10 * i as u8 + 120,
-                    hue: 0,
+                    hue: 7,
                 })
                 .collect(),
         };
-        let img = LookupImage::new(&plane, &rule(OuterRule::ColorClass, 10));
+        let img = LookupImage::new(&plane, &rule(SecondByte::Saturation));
         assert_eq!((img.width, img.height, img.origin), (5, 4, (0, 0)));
         assert!(img.px[..5].iter().all(|&t| t == OUTSIDE_TEXEL));
         assert!(img.px[15..].iter().all(|&t| t == OUTSIDE_TEXEL));
         assert_eq!([img.px[5], img.px[9]], [OUTSIDE_TEXEL; 2]);
-        // Pixel (2, 1) is texel (3, 2): code 5, saturation 170, target (hue 5 near 10).
-        assert_eq!(img.px[2 * 5 + 3], 5 | 170 << 8 | TARGET_BIT);
-        assert_eq!(img.px[5 + 1], 120 << 8 | TARGET_BIT);
+        // Pixel (2, 1) is texel (3, 2): code 5, saturation 170.
+        assert_eq!(img.px[2 * 5 + 3], 5 | 170 << 8);
+        assert_eq!(img.px[5 + 1], 120 << 8);
+        // The paper's outer test reads the raw hue instead.
+        let raw = LookupImage::new(&plane, &rule(SecondByte::RawHue));
+        assert_eq!(raw.px[2 * 5 + 3], 5 | 7 << 8);
     }
 
     /// Every RGB colour: the row conversion equals the scalar HSV, classes and rule.
     #[test]
     fn row_conversion_equals_the_scalar_path_on_every_colour() {
-        for (outer, center) in [
-            (OuterRule::ColorClass, 10),
-            (OuterRule::ColorClass, GRAY),
-            (OuterRule::RawHue, 10),
-        ] {
-            let rule = rule(outer, center);
+        for second in [SecondByte::Saturation, SecondByte::RawHue] {
+            let rule = rule(second);
             let mut rgb = vec![0u8; 3 * 256];
             let mut out = vec![0; 256];
-            for r in (0..=255u8).step_by(if outer == OuterRule::ColorClass && center == 10 {
-                1
-            } else {
-                3
-            }) {
+            for r in 0..=255u8 {
                 for g in 0..=255u8 {
                     for (b, p) in rgb.chunks_exact_mut(3).enumerate() {
                         p.copy_from_slice(&[r, g, b as u8]);
@@ -432,7 +401,7 @@ mod tests {
                     for (b, &t) in out.iter().enumerate() {
                         let (h, s, v) = rgb_to_hsv(r, g, b as u8);
                         let want = rule.texel(rule.classes.code(h, s, v), s, h);
-                        assert_eq!(t, want, "rgb {r} {g} {b} ({outer:?}, centre {center})");
+                        assert_eq!(t, want, "rgb {r} {g} {b} ({second:?})");
                     }
                 }
             }
@@ -442,7 +411,7 @@ mod tests {
     #[test]
     fn whole_images_convert_like_the_scalar_colour_plane() {
         let img = RgbImage::from_fn(37, 5, |x, y| image::Rgb([(x * 7) as u8, (y * 50) as u8, (x * y) as u8]));
-        let rule = rule(OuterRule::ColorClass, 10);
+        let rule = rule(SecondByte::Saturation);
         let fast = LookupImage::from_rgb(&img, &rule);
         let scalar = LookupImage::new(&ColorPlane::from_rgb(&img, &rule.classes), &rule);
         assert_eq!(
@@ -469,21 +438,17 @@ mod tests {
             row_stride: 20,
         };
         assert!(frame.is_complete());
-        // The target is saturated red: red pixels are target, blue ones background.
-        let rule = TexelRule {
-            center_sat: 250,
-            ..rule(OuterRule::ColorClass, 0)
-        };
+        let rule = rule(SecondByte::Saturation);
         let mut img = LookupImage::with_capacity(3, 2);
         let capacity = img.px.capacity();
         let roi = Region { cols: 1..9, rows: 1..2 };
         img.refill(&frame, 1, &roi, &rule);
         assert_eq!((img.width, img.height, img.origin), (4, 3, (1, 1)));
-        assert_eq!(img.px[4 + 1], texel(120, 255, false));
-        assert_eq!(img.px[4 + 2], texel(120, 255, false));
+        assert_eq!(img.px[4 + 1], texel(120, 255));
+        assert_eq!(img.px[4 + 2], texel(120, 255));
         assert_eq!(img.px.iter().filter(|&&t| t == OUTSIDE_TEXEL).count(), 10);
         img.refill(&frame, 0, &Region { cols: 0..3, rows: 0..2 }, &rule);
-        assert_eq!(img.px[5 + 1], texel(0, 255, true));
+        assert_eq!(img.px[5 + 1], texel(0, 255));
         assert_eq!(img.px.capacity(), capacity, "no reallocation");
     }
 }

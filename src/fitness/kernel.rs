@@ -13,7 +13,7 @@ use nalgebra::Vector3;
 
 use super::PointSet;
 use crate::camera::Intrinsics;
-use crate::lookup::{LookupImage, Texel};
+use crate::lookup::{LookupImage, Texel, OUTSIDE};
 
 /// Where a model point (photo pixels) lands in one camera for one candidate: the
 /// camera-frame axes and origin of the model (`[ax | ay | t]`, row-major) and the
@@ -128,13 +128,48 @@ impl Chunk {
 }
 
 /// Colour tolerances: a model point against its pixel, and the left pixel against the
-/// right one.
+/// right one; and the outer points' test.
 #[derive(Debug, Clone, Copy)]
 pub struct Tolerances {
     pub hue: u8,
     pub sat: u8,
     pub stereo_hue: u8,
     pub stereo_sat: u8,
+    pub outer: OuterTest,
+}
+
+/// Eq. 16's test of an outer point: does its pixel look like the target (`e4`)?
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OuterTest {
+    /// The paper's test on the raw hue (the texels' second byte) instead of robust
+    /// mode's colour-class test.
+    pub raw_hue: bool,
+    /// `H̄_in` as an OpenCV hue, and the hue threshold.
+    pub mean_hue: u8,
+    pub threshold: u8,
+    /// The central rectangle's colour code and mean saturation, and the saturation
+    /// tolerance: a chromatic centre matches a chromatic pixel of near hue and
+    /// saturation, an achromatic one a pixel of its class.
+    pub center_code: u8,
+    pub center_sat: u8,
+    pub sat_tolerance: u8,
+}
+
+impl OuterTest {
+    /// True when an outer point on texel `t` sees the target; a point off the image
+    /// always does (a mismatch).
+    #[inline(always)]
+    pub fn target(&self, t: Texel) -> bool {
+        let (code, second) = ((t & 0xff) as u32, (t >> 8) as u32);
+        let near = |hue: u32| hue_gap(hue, self.mean_hue as u32) < self.threshold as u32;
+        let class = if self.center_code < 180 {
+            (code < 180) & near(code) & (second.abs_diff(self.center_sat as u32) <= self.sat_tolerance as u32)
+        } else {
+            code == self.center_code as u32
+        };
+        let seen = if self.raw_hue { near(second) } else { class };
+        (code == OUTSIDE as u32) | seen
+    }
 }
 
 /// What one candidate's points see in both images.
@@ -151,7 +186,7 @@ pub struct Counts {
     pub confirmed: u32,
 }
 
-/// Circular distance of two chromatic codes (≥ 90 when either is not chromatic).
+/// Circular distance of two hues (0–180); callers check that codes are chromatic.
 #[inline(always)]
 fn hue_gap(a: u32, b: u32) -> u32 {
     let d = a.abs_diff(b).min(180);
@@ -161,15 +196,15 @@ fn hue_gap(a: u32, b: u32) -> u32 {
 /// Fig. 8 for a chromatic model colour: a chromatic pixel of close hue and saturation.
 #[inline(always)]
 fn chromatic_match(t: Texel, code: u8, sat: u8, tol: &Tolerances) -> bool {
-    let (t_code, t_sat) = (t & 0xff, (t >> 8) & 0xff);
+    let (t_code, t_sat) = ((t & 0xff) as u32, (t >> 8) as u32);
     (t_code < 180) & (hue_gap(t_code, code as u32) <= tol.hue as u32) & (t_sat.abs_diff(sat as u32) <= tol.sat as u32)
 }
 
 /// Left and right pixels show the same colour (see [`Counts::confirmed`]).
 #[inline(always)]
 fn same_colour(l: Texel, r: Texel, tol: &Tolerances) -> bool {
-    let (lc, rc) = (l & 0xff, r & 0xff);
-    let (ls, rs) = ((l >> 8) & 0xff, (r >> 8) & 0xff);
+    let (lc, rc) = ((l & 0xff) as u32, (r & 0xff) as u32);
+    let (ls, rs) = ((l >> 8) as u32, (r >> 8) as u32);
     (hue_gap(lc, rc) <= tol.stereo_hue as u32) & (ls.abs_diff(rs) <= tol.stereo_sat as u32)
 }
 
@@ -234,7 +269,7 @@ fn count_chunks<const BOTH: bool>(
                 let ml = chromatic_match(l, code, sat, tol);
                 c.close[0] += ml as u32;
                 c.close[1] += chromatic_match(r, code, sat, tol) as u32;
-                c.confirmed += (ml & (r & 0xff < 180) & same_colour(l, r, tol)) as u32;
+                c.confirmed += (ml & ((r & 0xff) < 180) & same_colour(l, r, tol)) as u32;
             }
         } else {
             for (&l, (&code, &sat)) in tl.iter().zip(model) {
@@ -250,14 +285,14 @@ fn count_chunks<const BOTH: bool>(
         if BOTH {
             let tr = b.read(right, pr, xs, ys);
             for ((&l, &r), &code) in tl.iter().zip(tr).zip(codes) {
-                let (ml, mr) = ((l & 0xff) == code as u32, (r & 0xff) == code as u32);
+                let (ml, mr) = ((l & 0xff) == code as Texel, (r & 0xff) == code as Texel);
                 c.close[0] += ml as u32;
                 c.close[1] += mr as u32;
                 c.confirmed += (ml & mr) as u32;
             }
         } else {
             for (&l, &code) in tl.iter().zip(codes) {
-                c.close[0] += ((l & 0xff) == code as u32) as u32;
+                c.close[0] += ((l & 0xff) == code as Texel) as u32;
             }
         }
     }
@@ -266,9 +301,18 @@ fn count_chunks<const BOTH: bool>(
     for start in (0..n_outer).step_by(CHUNK) {
         let r = start..(start + CHUNK).min(n_outer);
         let (xs, ys) = (&points.outer_x[r.clone()], &points.outer_y[r]);
-        target[0] += a.read(left, pl, xs, ys).iter().map(|&t| (t >> 16) & 1).sum::<u32>();
+        let outer = tol.outer;
+        target[0] += a
+            .read(left, pl, xs, ys)
+            .iter()
+            .map(|&t| outer.target(t) as u32)
+            .sum::<u32>();
         if BOTH {
-            target[1] += b.read(right, pr, xs, ys).iter().map(|&t| (t >> 16) & 1).sum::<u32>();
+            target[1] += b
+                .read(right, pr, xs, ys)
+                .iter()
+                .map(|&t| outer.target(t) as u32)
+                .sum::<u32>();
         }
     }
     c.background = [
@@ -283,7 +327,7 @@ mod tests {
     use super::*;
     use crate::color::{hue_distance, is_chromatic};
     use crate::frame::{ColorPlane, PixelColor};
-    use crate::lookup::{texel, OUTSIDE_TEXEL, TARGET_BIT};
+    use crate::lookup::{texel, OUTSIDE_TEXEL};
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
@@ -348,7 +392,30 @@ mod tests {
         sat: 50,
         stereo_hue: 5,
         stereo_sat: 25,
+        outer: OuterTest {
+            raw_hue: false,
+            mean_hue: 10,
+            threshold: 15,
+            center_code: 12,
+            center_sat: 150,
+            sat_tolerance: 50,
+        },
     };
+
+    /// The outer test written plainly, from Table 1 and eq. 16.
+    fn reference_target(t: Texel, o: &OuterTest) -> bool {
+        let (code, second) = ((t & 0xff) as u8, (t >> 8) as u8);
+        let near = |h: u8| hue_distance(h, o.mean_hue) < o.threshold;
+        if code == OUTSIDE {
+            true
+        } else if o.raw_hue {
+            near(second)
+        } else if is_chromatic(o.center_code) {
+            is_chromatic(code) && near(code) && second.abs_diff(o.center_sat) <= o.sat_tolerance
+        } else {
+            code == o.center_code
+        }
+    }
 
     /// The texel under inner (`outer` false) or outer point `i`, one point at a time.
     fn texel_at(pts: &PointSet, img: &LookupImage, p: &Projection, i: usize, outer: bool) -> Texel {
@@ -364,7 +431,7 @@ mod tests {
     }
 
     /// The plain scalar counts, one point at a time with branches.
-    fn reference(pts: &PointSet, images: [&LookupImage; 2], projections: [&Projection; 2]) -> Counts {
+    fn reference(pts: &PointSet, images: [&LookupImage; 2], projections: [&Projection; 2], tol: &Tolerances) -> Counts {
         let mut c = Counts::default();
         for i in 0..pts.inner_x.len() {
             let [l, r] = [0, 1].map(|e| texel_at(pts, images[e], projections[e], i, false));
@@ -372,7 +439,7 @@ mod tests {
             let matches = |t: Texel| {
                 let (code, sat) = ((t & 0xff) as u8, (t >> 8) as u8);
                 if is_chromatic(m) {
-                    is_chromatic(code) && hue_distance(m, code) <= TOL.hue && pts.inner_sat[i].abs_diff(sat) <= TOL.sat
+                    is_chromatic(code) && hue_distance(m, code) <= tol.hue && pts.inner_sat[i].abs_diff(sat) <= tol.sat
                 } else {
                     code == m
                 }
@@ -383,8 +450,8 @@ mod tests {
             let (lc, rc) = ((l & 0xff) as u8, (r & 0xff) as u8);
             let same = if is_chromatic(m) {
                 is_chromatic(rc)
-                    && hue_distance(lc, rc) <= TOL.stereo_hue
-                    && ((l >> 8) as u8).abs_diff((r >> 8) as u8) <= TOL.stereo_sat
+                    && hue_distance(lc, rc) <= tol.stereo_hue
+                    && ((l >> 8) as u8).abs_diff((r >> 8) as u8) <= tol.stereo_sat
             } else {
                 mr
             };
@@ -392,7 +459,7 @@ mod tests {
         }
         for e in 0..2 {
             c.background[e] = (0..pts.outer_x.len())
-                .filter(|&i| texel_at(pts, images[e], projections[e], i, true) & TARGET_BIT == 0)
+                .filter(|&i| !reference_target(texel_at(pts, images[e], projections[e], i, true), &tol.outer))
                 .count() as u32;
         }
         c
@@ -411,16 +478,16 @@ mod tests {
             },
             rng,
         );
-        lookup(&colours, |c| c.sat > 128)
+        lookup(&colours)
     }
 
-    /// The lookup image of a whole plane with an arbitrary outer-point verdict.
-    fn lookup(plane: &ColorPlane, target: impl Fn(&PixelColor) -> bool) -> LookupImage {
+    /// The lookup image of a whole plane (second byte: the saturation).
+    fn lookup(plane: &ColorPlane) -> LookupImage {
         let (w, h) = (plane.width + 2, plane.height + 2);
         let mut px = vec![OUTSIDE_TEXEL; w * h];
         for (row, src) in px.chunks_exact_mut(w).skip(1).zip(plane.px.chunks_exact(plane.width)) {
             for (t, c) in row[1..].iter_mut().zip(src) {
-                *t = texel(c.code, c.sat, target(c));
+                *t = texel(c.code, c.sat);
             }
         }
         LookupImage {
@@ -437,15 +504,31 @@ mod tests {
         let (left, right) = (random_colours(&mut rng), random_colours(&mut rng));
         let (cam, pts) = (camera(), points(&mut rng));
         let (mut seen, mut confirmed) = (0, 0);
-        for _ in 0..300 {
+        // The three outer tests: chromatic centre, achromatic centre, the paper's raw hue.
+        let outers = [
+            TOL.outer,
+            OuterTest {
+                center_code: crate::color::GRAY,
+                ..TOL.outer
+            },
+            OuterTest {
+                raw_hue: true,
+                ..TOL.outer
+            },
+        ];
+        for i in 0..300 {
+            let tol = Tolerances {
+                outer: outers[i % 3],
+                ..TOL
+            };
             let [ax, ay, t] = placement(&mut rng);
             // The right camera sees the placement shifted by a baseline.
             let pl = projection(&cam, (0, 0), [&ax, &ay, &t]);
             let pr = projection(&cam, (0, 0), [&ax, &ay, &(t + Vector3::new(-120.0, 0.0, 0.0))]);
-            let fast = count(&pts, [&left, &right], [&pl, &pr], &TOL);
-            assert_eq!(fast, reference(&pts, [&left, &right], [&pl, &pr]));
-            assert_eq!(count_chunks::<true>(&pts, [&left, &right], [&pl, &pr], &TOL), fast);
-            let (close, background) = count_left(&pts, &left, &pl, &TOL);
+            let fast = count(&pts, [&left, &right], [&pl, &pr], &tol);
+            assert_eq!(fast, reference(&pts, [&left, &right], [&pl, &pr], &tol));
+            assert_eq!(count_chunks::<true>(&pts, [&left, &right], [&pl, &pr], &tol), fast);
+            let (close, background) = count_left(&pts, &left, &pl, &tol);
             assert_eq!((close, background), (fast.close[0], fast.background[0]));
             seen += (fast.close[0] > 0) as u32;
             confirmed += fast.confirmed;
@@ -475,7 +558,7 @@ mod tests {
             },
             &mut rng,
         );
-        let img = lookup(&coords, |_| false);
+        let img = lookup(&coords);
         let cam = camera();
         let mut chunk = Chunk::new();
         let (mut exact, mut total) = (0, 0);
@@ -525,7 +608,7 @@ mod tests {
             },
             &mut rng,
         );
-        let full = lookup(&coords, |_| false);
+        let full = lookup(&coords);
         let (cols, rows) = (200..500, 100..250);
         let mut region = LookupImage {
             width: cols.len() + 2,

@@ -12,7 +12,7 @@ use crate::camera::{Intrinsics, StereoRig};
 use crate::color::is_chromatic;
 use crate::config::FitnessParams;
 use crate::frame::{FrameLevel, Region};
-use crate::lookup::{LevelLookup, LookupImage, SbsBytes, TexelRule};
+use crate::lookup::{LevelLookup, LookupImage, SbsBytes, SecondByte, TexelRule};
 
 mod kernel;
 use crate::model::PhotoModel;
@@ -175,12 +175,10 @@ impl Scorer {
     pub fn texel_rule(&self) -> TexelRule {
         TexelRule {
             classes: self.params.classes(),
-            outer: self.rule,
-            mean_hue: self.mean_hue,
-            hue_threshold: self.params.outer_hue_threshold,
-            center_code: self.center_code,
-            center_sat: self.center_sat,
-            sat_tolerance: self.sat_tolerance,
+            second: match self.rule {
+                OuterRule::RawHue => SecondByte::RawHue,
+                OuterRule::ColorClass => SecondByte::Saturation,
+            },
         }
     }
 
@@ -272,6 +270,14 @@ impl Scorer {
             sat: self.sat_tolerance,
             stereo_hue: STEREO_HUE_TOLERANCE,
             stereo_sat: STEREO_SAT_TOLERANCE,
+            outer: kernel::OuterTest {
+                raw_hue: self.rule == OuterRule::RawHue,
+                mean_hue: self.mean_hue,
+                threshold: self.params.outer_hue_threshold,
+                center_code: self.center_code,
+                center_sat: self.center_sat,
+                sat_tolerance: self.sat_tolerance,
+            },
         }
     }
 
