@@ -13,7 +13,7 @@ use nalgebra::Vector3;
 
 use super::PointSet;
 use crate::camera::Intrinsics;
-use crate::lookup::{LookupImage, Texel, OUTSIDE};
+use crate::lookup::{LookupImage, OUTSIDE};
 
 /// Where a model point (photo pixels) lands in one camera for one candidate: the
 /// camera-frame axes and origin of the model (`[ax | ay | t]`, row-major) and the
@@ -80,7 +80,8 @@ fn pixel(p: &Projection, x: f32, y: f32) -> (f32, f32) {
 /// few hundred points would otherwise spend a tenth of its time clearing them).
 struct Chunk {
     idx: [MaybeUninit<u32>; CHUNK],
-    tex: [MaybeUninit<Texel>; CHUNK],
+    /// Texels widened to `u32`: the matching loops run on 32-bit lanes.
+    tex: [MaybeUninit<u32>; CHUNK],
 }
 
 impl Chunk {
@@ -94,7 +95,7 @@ impl Chunk {
     /// The texels under points `(xs[i], ys[i])` (the first [`CHUNK`] of them): nearest
     /// pixel, or the outside ring for points off the image or behind the camera.
     #[inline(always)]
-    fn read(&mut self, img: &LookupImage, p: &Projection, xs: &[f32], ys: &[f32]) -> &[Texel] {
+    fn read(&mut self, img: &LookupImage, p: &Projection, xs: &[f32], ys: &[f32]) -> &[u32] {
         let n = xs.len().min(ys.len()).min(CHUNK);
         let (u_max, v_max) = ((img.width - 1) as f32, (img.height - 1) as f32);
         let width = img.width as f32;
@@ -113,7 +114,7 @@ impl Chunk {
         for (t, &i) in self.tex.iter_mut().zip(idx) {
             // SAFETY: `i = v·width + u` with `u ≤ width − 1` and `v ≤ height − 1` (clamped
             // above, exact in f32 below `MAX_TEXELS`), so `i < width · height = px.len()`.
-            t.write(unsafe { *px.get_unchecked(i as usize) });
+            t.write(unsafe { *px.get_unchecked(i as usize) } as u32);
         }
         // SAFETY: the loop above wrote the first `n` texels.
         unsafe { std::slice::from_raw_parts(self.tex.as_ptr().cast(), n) }
@@ -156,19 +157,43 @@ pub struct OuterTest {
 }
 
 impl OuterTest {
-    /// True when an outer point on texel `t` sees the target; a point off the image
-    /// always does (a mismatch).
+    /// How many of `texels` see the target (a point off the image always does: a
+    /// mismatch). The test's branch is taken once, each loop is branch-free vector code.
     #[inline(always)]
-    pub fn target(&self, t: Texel) -> bool {
-        let (code, second) = ((t & 0xff) as u32, (t >> 8) as u32);
-        let near = |hue: u32| hue_gap(hue, self.mean_hue as u32) < self.threshold as u32;
-        let class = if self.center_code < 180 {
-            (code < 180) & near(code) & (second.abs_diff(self.center_sat as u32) <= self.sat_tolerance as u32)
+    fn targets(&self, texels: &[u32]) -> u32 {
+        if self.raw_hue {
+            texels.iter().map(|&t| self.raw_target(t) as u32).sum()
+        } else if self.center_code < 180 {
+            texels.iter().map(|&t| self.chromatic_target(t) as u32).sum()
         } else {
-            code == self.center_code as u32
-        };
-        let seen = if self.raw_hue { near(second) } else { class };
-        (code == OUTSIDE as u32) | seen
+            texels.iter().map(|&t| self.class_target(t) as u32).sum()
+        }
+    }
+
+    #[inline(always)]
+    fn near(&self, hue: u32) -> bool {
+        hue_gap(hue, self.mean_hue as u32) < self.threshold as u32
+    }
+
+    /// The paper: the raw hue near `H̄_in`.
+    #[inline(always)]
+    fn raw_target(&self, t: u32) -> bool {
+        ((t & 0xff) == OUTSIDE as u32) | self.near(t >> 8)
+    }
+
+    /// A chromatic centre: a chromatic pixel of near hue and saturation.
+    #[inline(always)]
+    fn chromatic_target(&self, t: u32) -> bool {
+        let (code, sat) = (t & 0xff, t >> 8);
+        (code == OUTSIDE as u32)
+            | ((code < 180) & self.near(code) & (sat.abs_diff(self.center_sat as u32) <= self.sat_tolerance as u32))
+    }
+
+    /// An achromatic centre: a pixel of its class.
+    #[inline(always)]
+    fn class_target(&self, t: u32) -> bool {
+        let code = t & 0xff;
+        (code == OUTSIDE as u32) | (code == self.center_code as u32)
     }
 }
 
@@ -195,16 +220,16 @@ fn hue_gap(a: u32, b: u32) -> u32 {
 
 /// Fig. 8 for a chromatic model colour: a chromatic pixel of close hue and saturation.
 #[inline(always)]
-fn chromatic_match(t: Texel, code: u8, sat: u8, tol: &Tolerances) -> bool {
-    let (t_code, t_sat) = ((t & 0xff) as u32, (t >> 8) as u32);
+fn chromatic_match(t: u32, code: u8, sat: u8, tol: &Tolerances) -> bool {
+    let (t_code, t_sat) = (t & 0xff, t >> 8);
     (t_code < 180) & (hue_gap(t_code, code as u32) <= tol.hue as u32) & (t_sat.abs_diff(sat as u32) <= tol.sat as u32)
 }
 
 /// Left and right pixels show the same colour (see [`Counts::confirmed`]).
 #[inline(always)]
-fn same_colour(l: Texel, r: Texel, tol: &Tolerances) -> bool {
-    let (lc, rc) = ((l & 0xff) as u32, (r & 0xff) as u32);
-    let (ls, rs) = ((l >> 8) as u32, (r >> 8) as u32);
+fn same_colour(l: u32, r: u32, tol: &Tolerances) -> bool {
+    let (lc, rc) = (l & 0xff, r & 0xff);
+    let (ls, rs) = (l >> 8, r >> 8);
     (hue_gap(lc, rc) <= tol.stereo_hue as u32) & (ls.abs_diff(rs) <= tol.stereo_sat as u32)
 }
 
@@ -285,14 +310,14 @@ fn count_chunks<const BOTH: bool>(
         if BOTH {
             let tr = b.read(right, pr, xs, ys);
             for ((&l, &r), &code) in tl.iter().zip(tr).zip(codes) {
-                let (ml, mr) = ((l & 0xff) == code as Texel, (r & 0xff) == code as Texel);
+                let (ml, mr) = ((l & 0xff) == code as u32, (r & 0xff) == code as u32);
                 c.close[0] += ml as u32;
                 c.close[1] += mr as u32;
                 c.confirmed += (ml & mr) as u32;
             }
         } else {
             for (&l, &code) in tl.iter().zip(codes) {
-                c.close[0] += ((l & 0xff) == code as Texel) as u32;
+                c.close[0] += ((l & 0xff) == code as u32) as u32;
             }
         }
     }
@@ -301,18 +326,9 @@ fn count_chunks<const BOTH: bool>(
     for start in (0..n_outer).step_by(CHUNK) {
         let r = start..(start + CHUNK).min(n_outer);
         let (xs, ys) = (&points.outer_x[r.clone()], &points.outer_y[r]);
-        let outer = tol.outer;
-        target[0] += a
-            .read(left, pl, xs, ys)
-            .iter()
-            .map(|&t| outer.target(t) as u32)
-            .sum::<u32>();
+        target[0] += tol.outer.targets(a.read(left, pl, xs, ys));
         if BOTH {
-            target[1] += b
-                .read(right, pr, xs, ys)
-                .iter()
-                .map(|&t| outer.target(t) as u32)
-                .sum::<u32>();
+            target[1] += tol.outer.targets(b.read(right, pr, xs, ys));
         }
     }
     c.background = [
@@ -327,7 +343,7 @@ mod tests {
     use super::*;
     use crate::color::{hue_distance, is_chromatic};
     use crate::frame::{ColorPlane, PixelColor};
-    use crate::lookup::{texel, OUTSIDE_TEXEL};
+    use crate::lookup::{texel, Texel, OUTSIDE_TEXEL};
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
@@ -570,6 +586,7 @@ mod tests {
                 .unzip();
             let tex = chunk.read(&img, &p, &xs, &ys);
             for ((&x, &y), &got) in xs.iter().zip(&ys).zip(tex) {
+                let got = got as Texel;
                 let q = t + ax * x as f64 + ay * y as f64;
                 let want = match cam.project(&nalgebra::Point3::from(q)) {
                     Some(q) if q.x > -0.5 && q.y > -0.5 && q.x < W as f64 - 0.5 && q.y < H as f64 - 0.5 => {
@@ -641,7 +658,7 @@ mod tests {
                     inside += 1;
                     w
                 } else {
-                    OUTSIDE_TEXEL
+                    OUTSIDE_TEXEL as u32
                 };
                 agree += (p == want) as u32;
                 total += 1;
