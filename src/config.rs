@@ -9,6 +9,7 @@ use serde::Deserialize;
 
 use crate::calibration::{Calibration, CalibrationError};
 use crate::color::ColorClasses;
+use crate::realtime::RealtimeSettings;
 
 /// The built-in configuration, used when no `--config` is given.
 pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");
@@ -60,6 +61,7 @@ struct RawConfig {
     tracking: TrackingSettings,
     controller: RawController,
     detect: RawDetect,
+    realtime: RealtimeSettings,
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -423,6 +425,7 @@ pub struct Config {
     pub fitness: FitnessParams,
     pub controller: ControllerSettings,
     pub detect: DetectSettings,
+    pub realtime: RealtimeSettings,
 }
 
 impl Config {
@@ -622,6 +625,9 @@ impl Config {
         let controller = controller(&raw.controller).map_err(|(field, p)| invalid("controller", field, p))?;
         let detect = detect_settings(raw.detect, dir.unwrap_or(Path::new(BUILT_IN_DIR)))
             .map_err(|(field, p)| invalid("detect", field, p))?;
+        if let Some((field, p)) = raw.realtime.problem() {
+            return Err(invalid("realtime", field, p));
+        }
         Ok(Config {
             calibration,
             left_from_hand,
@@ -633,6 +639,7 @@ impl Config {
             fitness,
             controller,
             detect,
+            realtime: raw.realtime,
         })
     }
 }

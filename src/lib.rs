@@ -28,6 +28,7 @@ pub mod model;
 pub mod overlay;
 pub mod plot;
 pub mod pose;
+pub mod realtime;
 pub mod render;
 pub mod stats;
 pub mod tracking;

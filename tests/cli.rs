@@ -213,3 +213,60 @@ fn bad_input_gives_one_line_naming_the_file() {
     assert!(!Path::new(&p("x.model")).exists(), "nothing written on error");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn bench_json_reports_every_figure() {
+    let (frame, model) = (
+        repo("tests/data/examples/rocket-frame.jpg"),
+        repo("tests/data/examples/rocket.model"),
+    );
+    let out = photopose(&[
+        "bench",
+        "--sbs",
+        &frame,
+        "--model",
+        &model,
+        "--individuals",
+        "300",
+        "--threads",
+        "2",
+        "--frames",
+        "6",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one JSON object: {text}");
+    let r: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let model_points = m["inner"].as_array().unwrap().len() + m["outer"].as_array().unwrap().len();
+    assert_eq!(
+        r["points_per_individual"],
+        2 * model_points,
+        "N_in + N_out points × 2 images"
+    );
+    assert_eq!(r["threads"], 2);
+    assert_eq!(r["tracking_frames"], 6);
+    let num = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("no number {k} in {text}"));
+    for k in [
+        "points_per_s_1t",
+        "points_per_s_all",
+        "oneshot_1000_s",
+        "tracking_frame_p50_ms",
+    ] {
+        assert!(num(k) > 0.0 && num(k).is_finite(), "{k} = {}", num(k));
+    }
+    // The figures agree with each other.
+    let ns = num("ns_per_point_1t");
+    assert!(
+        (ns * num("points_per_s_1t") * 1e-9 - 1.0).abs() < 1e-6,
+        "ns per point {ns}"
+    );
+    assert!(num("tracking_frame_p99_ms") >= num("tracking_frame_p50_ms"));
+    let wrong = photopose(&["bench", "--sbs", &frame, "--model", &model, "--individuals", "0"]);
+    assert!(!wrong.status.success());
+    assert_eq!(
+        String::from_utf8_lossy(&wrong.stderr).trim(),
+        "error: --individuals must be ≥ 1 and --frames ≥ 2"
+    );
+}

@@ -253,6 +253,188 @@ fn processes_start_in_any_order_and_resume_after_a_crash() {
     );
 }
 
+/// A thread of a running process as the kernel sees it.
+#[derive(Debug)]
+struct TaskInfo {
+    name: String,
+    cpus: String,
+    policy: i32,
+    rt_priority: i32,
+}
+
+fn tasks(pid: u32) -> Vec<(u32, TaskInfo)> {
+    let dir = format!("/proc/{pid}/task");
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(&dir).expect("task list").flatten() {
+        let tid: u32 = entry.file_name().to_string_lossy().parse().expect("tid");
+        let read = |f: &str| std::fs::read_to_string(entry.path().join(f)).unwrap_or_default();
+        let (stat, status) = (read("stat"), read("status"));
+        // Fields after the parenthesised name: state is field 3; rt_priority 40, policy 41.
+        let after = &stat[stat.rfind(')').map_or(0, |i| i + 2)..];
+        let field = |n: usize| after.split(' ').nth(n - 3).and_then(|v| v.parse().ok()).unwrap_or(-1);
+        let cpus = status
+            .lines()
+            .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+            .unwrap_or("")
+            .trim()
+            .to_string();
+        let name = read("comm").trim().to_string();
+        out.push((
+            tid,
+            TaskInfo {
+                name,
+                cpus,
+                policy: field(41),
+                rt_priority: field(40),
+            },
+        ));
+    }
+    out
+}
+
+#[test]
+fn the_estimator_applies_its_realtime_options() {
+    let _serial = serial();
+    let dir = scratch("realtime");
+    let config = dir.join("realtime.toml");
+    std::fs::write(
+        &config,
+        "[ga]\nthreads = 2\n[realtime]\ncpus = [1, 0]\nfifo_priority = 1\nlock_memory = true\n",
+    )
+    .unwrap();
+    // Whether this machine lets the tests' user use SCHED_FIFO decides what to expect.
+    let fifo_allowed = std::thread::spawn(|| {
+        let wish = photopose::realtime::RealtimeSettings {
+            fifo_priority: 1,
+            ..Default::default()
+        };
+        photopose::realtime::apply_to_thread(&wish, 0).fifo_priority.is_some()
+    })
+    .join()
+    .unwrap();
+    let log = dir.join("estimator.log");
+    let mut w = Watcher::new("photopose-test-realtime");
+    let child = photopose()
+        .env("RUST_LOG", "info")
+        .args(["estimator", "--model", &model(), "--config"])
+        .arg(&config)
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&log).unwrap())
+        .spawn()
+        .expect("photopose binary");
+    let estimator = Running(child);
+    let _capture = spawn(&["capture"]);
+    // After the first pose the acquisition has started the fitness workers.
+    assert!(w.until_pose(Duration::from_secs(8)), "no pose with realtime options");
+    w.collect(Duration::from_millis(500));
+    let pid = estimator.0.id();
+    let tasks = tasks(pid);
+    let main = &tasks.iter().find(|(tid, _)| *tid == pid).expect("main thread").1;
+    let workers: Vec<&TaskInfo> = tasks
+        .iter()
+        .filter(|(_, t)| t.name.starts_with("photopose-fitn"))
+        .map(|(_, t)| t)
+        .collect();
+    println!("estimator threads: main {main:?}, workers {workers:?}");
+    assert_eq!(main.cpus, "1", "main thread on the first listed CPU");
+    assert_eq!(workers.len(), 2, "two fitness workers");
+    let mut worker_cpus: Vec<&str> = workers.iter().map(|t| t.cpus.as_str()).collect();
+    worker_cpus.sort();
+    assert_eq!(worker_cpus, ["0", "1"], "workers on the following CPUs in turn");
+    let expected = if fifo_allowed { (1, 1) } else { (0, 0) };
+    for t in workers.iter().copied().chain([main]) {
+        assert_eq!((t.policy, t.rt_priority), expected, "{} scheduling", t.name);
+    }
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    let locked_kb: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmLck:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap_or(0);
+    drop(estimator);
+    let log = std::fs::read_to_string(&log).unwrap();
+    let summary = log.lines().find(|l| l.contains("realtime:")).unwrap_or("").to_string();
+    println!("VmLck {locked_kb} kB; log: {summary}");
+    if summary.contains("memory locked") {
+        assert!(locked_kb > 1024, "memory reported locked but VmLck is {locked_kb} kB");
+    } else {
+        assert!(
+            log.contains("mlockall refused"),
+            "memory neither locked nor refused: {log}"
+        );
+    }
+    if !fifo_allowed {
+        assert!(log.contains("SCHED_FIFO priority 1 refused"), "no warning: {log}");
+    }
+    assert!(summary.contains("main thread on CPU 1"), "summary: {summary}");
+}
+
+/// `photopose latency --json` (or `--compare-transport`) as parsed JSON.
+fn latency_json(extra: &[&str]) -> serde_json::Value {
+    let out = photopose()
+        .args(["latency", "--json"])
+        .args(extra)
+        .output()
+        .expect("photopose binary");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one JSON object: {text}");
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"))
+}
+
+#[test]
+fn latency_measures_the_running_pipeline() {
+    let _serial = serial();
+    let _estimator = estimator();
+    let _capture = spawn(&["capture"]);
+    let mut w = Watcher::new("photopose-test-latency");
+    assert!(w.until_pose(Duration::from_secs(8)), "no pose");
+    let r = latency_json(&["--seconds", "3"]);
+    println!("latency: {r}");
+    let n = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("no number {k} in {r}"));
+    // 3 s of a 60 fps camera (a busy machine may render fewer), a pose for nearly every frame.
+    assert!((120.0..=200.0).contains(&n("frames")), "{} frames", n("frames"));
+    assert!(n("poses") >= 0.9 * n("frames"), "{} poses", n("poses"));
+    assert!(
+        n("dropped_frames") <= 0.05 * n("frames"),
+        "{} dropped",
+        n("dropped_frames")
+    );
+    for (p50, p99) in [
+        ("transport_p50_us", "transport_p99_us"),
+        ("estimation_p50_ms", "estimation_p99_ms"),
+        ("end_to_end_p50_ms", "end_to_end_p99_ms"),
+    ] {
+        assert!(n(p50) > 0.0 && n(p50) <= n(p99), "{p50} {} {p99} {}", n(p50), n(p99));
+    }
+    assert!(n("end_to_end_max_ms") >= n("end_to_end_p99_ms"));
+    // A pose is received after it is published: end to end includes estimation.
+    assert!(n("end_to_end_p50_ms") >= n("estimation_p50_ms"));
+    // Frames travel by reference: far below a millisecond.
+    assert!(
+        n("transport_p50_us") < 1000.0,
+        "transport p50 {} µs",
+        n("transport_p50_us")
+    );
+}
+
+#[test]
+fn compare_transport_times_both_transports_on_the_same_frames() {
+    let _serial = serial();
+    let r = latency_json(&["--compare-transport", "--seconds", "1"]);
+    println!("compare transport: {r}");
+    assert_eq!(r["frames"], 60);
+    assert_eq!(r["frame_bytes"], 2 * 1280 * 720 * 3);
+    let p50 = |t: &str| r[t]["p50"].as_f64().unwrap_or_else(|| panic!("no {t}.p50 in {r}"));
+    let ratio = r["ratio_p50"].as_f64().unwrap();
+    assert!((ratio - p50("unix_socket_us") / p50("iceoryx2_us")).abs() < 1e-9 * ratio);
+    for t in ["iceoryx2_us", "unix_socket_us"] {
+        assert!(p50(t) > 0.0 && r[t]["max"].as_f64().unwrap() >= p50(t));
+    }
+    // Copying 5.5 MB cannot beat passing a reference.
+    assert!(ratio > 1.0, "ratio {ratio}");
+}
+
 #[test]
 fn a_slow_subscriber_never_grows_memory() {
     let _serial = serial();

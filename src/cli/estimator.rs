@@ -12,6 +12,7 @@ use crate::ipc::{send_pose, wake_up, Ipc};
 use crate::lookup::SbsBytes;
 use crate::messages::{monotonic_ns, pixel_format, FrameHeader, FRAMES_SERVICE, POSES_SERVICE};
 use crate::model::PhotoModel;
+use crate::realtime::{self, RealtimeSettings};
 use crate::tracking::StreamTracker;
 
 /// Track the model in the frame stream.
@@ -31,6 +32,15 @@ pub struct EstimatorArgs {
 pub fn run(args: &EstimatorArgs) -> Result<()> {
     let config = Config::load(args.config.as_deref())?;
     let model = PhotoModel::load(&args.model)?;
+    if config.realtime != RealtimeSettings::default() {
+        let (thread, locked) = realtime::apply_to_process(&config.realtime);
+        tracing::info!(
+            "estimator: realtime: main thread on CPU {}, SCHED_FIFO priority {}, memory {}",
+            thread.pinned.map_or("any".into(), |c| c.to_string()),
+            thread.fifo_priority.map_or("none".into(), |p| p.to_string()),
+            if locked { "locked" } else { "pageable" }
+        );
+    }
     let ipc = Ipc::new("photopose-estimator")?;
     let frames = ipc.frame_subscriber()?;
     let poses = ipc.pose_publisher(POSES_SERVICE)?;
