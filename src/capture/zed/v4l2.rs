@@ -181,6 +181,8 @@ impl MmapStream {
             let mut buf = v4l2_buffer { index, ..buffer_desc() };
             stream.ioctl(v4l2::vidioc::VIDIOC_QUERYBUF, &mut buf, "VIDIOC_QUERYBUF")?;
             let len = buf.length as usize;
+            // SAFETY: for memory-mapped buffers the driver fills the union's `offset`.
+            let offset = unsafe { buf.m.offset };
             // SAFETY: maps the buffer the driver just described (offset and length from
             // VIDIOC_QUERYBUF) on the open device; unmapped in Drop.
             let ptr = unsafe {
@@ -190,7 +192,7 @@ impl MmapStream {
                     libc::PROT_READ | libc::PROT_WRITE,
                     libc::MAP_SHARED,
                     fd,
-                    buf.m.offset as libc::off_t,
+                    offset as libc::off_t,
                 )
             }
             .map_err(|e| DeviceError::io(node, "mmap", e))?;
