@@ -133,7 +133,7 @@ pub fn rgb_row_to_yuyv(rgb: &[u8], yuyv: &mut [u8]) {
     for (p, q) in rgb.chunks_exact(6).zip(yuyv.chunks_exact_mut(4)) {
         let (y0, u0, v0) = rgb_to_yuv(p[0], p[1], p[2]);
         let (y1, u1, v1) = rgb_to_yuv(p[3], p[4], p[5]);
-        let mean = |a: u8, b: u8| ((a as u16 + b as u16 + 1) / 2) as u8;
+        let mean = |a: u8, b: u8| (a as u16 + b as u16).div_ceil(2) as u8;
         q.copy_from_slice(&[y0, mean(u0, u1), y1, mean(v0, v1)]);
     }
 }
@@ -210,7 +210,7 @@ mod tests {
         let (red, blue) = (rgb_to_yuv(255, 0, 0), rgb_to_yuv(0, 0, 255));
         assert_eq!(yuyv[0], red.0);
         assert_eq!(yuyv[2], blue.0);
-        assert_eq!(yuyv[1], ((red.1 as u16 + blue.1 as u16 + 1) / 2) as u8);
+        assert_eq!(yuyv[1], (red.1 as u16 + blue.1 as u16).div_ceil(2) as u8);
     }
 
     #[test]

@@ -104,38 +104,28 @@ fn tracking_frames_and_synthetic_frames_allocate_nothing() {
     let rendering = allocations() - before;
 
     // The estimator: acquisition and the first tracking frames may allocate (buffers
-    // grow to their working size); the frames after that may not.
-    let tracker_model = || PhotoModel::load(&repo("tests/data/examples/rocket.model")).expect("model");
-    let mut tracker = StreamTracker::new(tracker_model(), config.clone());
-    for f in &frames[..4] {
-        tracker.prepare(&frame(f.as_slice())).expect("frame");
-        tracker.step().expect("estimate");
-    }
-    let before = allocations();
-    let mut last = None;
-    for f in &frames[4..] {
-        tracker.prepare(&frame(f.as_slice())).expect("frame");
-        last = tracker.step();
-    }
-    let tracking = allocations() - before;
-    let est = last.expect("estimate");
+    // grow to their working size); the frames after that may not. Then the same frames
+    // as YUYV, converted straight from the payload.
     let truth: Isometry3<f64> = moved(frames.len() - 1);
-    let err = (est.best.position - truth.translation.vector).norm();
-
-    // YUYV frames: converted straight from the payload, just as allocation-free.
-    let mut tracker = StreamTracker::new(tracker_model(), config.clone());
-    for f in &yuyv[..4] {
-        tracker.prepare(&yuyv_frame(f.as_slice())).expect("frame");
-        tracker.step().expect("estimate");
-    }
-    let before = allocations();
-    let mut last = None;
-    for f in &yuyv[4..] {
-        tracker.prepare(&yuyv_frame(f.as_slice())).expect("frame");
-        last = tracker.step();
-    }
-    let tracking_yuyv = allocations() - before;
-    let err_yuyv = (last.expect("estimate").best.position - truth.translation.vector).norm();
+    let track = |frames: Vec<SbsBytes>| {
+        let model = PhotoModel::load(&repo("tests/data/examples/rocket.model")).expect("model");
+        let mut tracker = StreamTracker::new(model, config.clone());
+        for f in &frames[..4] {
+            tracker.prepare(f).expect("frame");
+            tracker.step().expect("estimate");
+        }
+        let before = allocations();
+        let mut last = None;
+        for f in &frames[4..] {
+            tracker.prepare(f).expect("frame");
+            last = tracker.step();
+        }
+        let allocated = allocations() - before;
+        let est = last.expect("estimate");
+        (allocated, (est.best.position - truth.translation.vector).norm())
+    };
+    let (tracking, err) = track(frames.iter().map(|f| frame(f.as_slice())).collect());
+    let (tracking_yuyv, err_yuyv) = track(yuyv.iter().map(|f| yuyv_frame(f.as_slice())).collect());
     println!(
         "allocations: {rendering} in 4 synthetic frames, {tracking} in 4 tracking frames (last error {err:.1} mm), \
          {tracking_yuyv} in 4 YUYV tracking frames (last error {err_yuyv:.1} mm)"

@@ -148,6 +148,10 @@ fn zed_capture_without_a_camera_fails_fast_with_one_line() {
     let took = start.elapsed();
     println!("--device /dev/video99 failed in {:.0} ms", took.as_secs_f64() * 1e3);
     fails_with(&out, &["cannot open /dev/video99", "No such file or directory"]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "error: cannot open /dev/video99: No such file or directory (os error 2)\n"
+    );
     assert!(took < Duration::from_secs(1), "took {took:?}");
     let out = photopose(&["capture", "--source", "zed", "--resolution", "2K", "--fps", "30"]);
     fails_with(

@@ -56,8 +56,8 @@ pub trait Opener {
 pub enum DeviceError {
     #[error(transparent)]
     Discovery(#[from] DiscoveryError),
-    #[error("cannot open {}: {source}", .node.display())]
-    Open { node: PathBuf, source: std::io::Error },
+    #[error("cannot open {}: {error}", .node.display())]
+    Open { node: PathBuf, error: std::io::Error },
     #[error("{} is not a video capture device with streaming I/O", .node.display())]
     NotCapture { node: PathBuf },
     #[error("{} does not offer {mode} in YUYV; it offers {}{}", .node.display(), mode_list(.offered), usb2_hint(.offered, *.usb_speed_mbps))]
@@ -71,18 +71,18 @@ pub enum DeviceError {
     ModeRefused { node: PathBuf, mode: Mode, got: String },
     #[error("{} was unplugged", .node.display())]
     Unplugged { node: PathBuf },
-    #[error("{}: {op} failed: {source}", .node.display())]
+    #[error("{}: {op} failed: {error}", .node.display())]
     Io {
         node: PathBuf,
         op: &'static str,
-        source: std::io::Error,
+        error: std::io::Error,
     },
 }
 
 impl DeviceError {
     /// An I/O error of `op` on `node`; ENODEV means the camera is gone.
-    pub fn io(node: &std::path::Path, op: &'static str, source: std::io::Error) -> Self {
-        if source.raw_os_error() == Some(libc::ENODEV) {
+    pub fn io(node: &std::path::Path, op: &'static str, error: std::io::Error) -> Self {
+        if error.raw_os_error() == Some(libc::ENODEV) {
             DeviceError::Unplugged {
                 node: node.to_path_buf(),
             }
@@ -90,7 +90,7 @@ impl DeviceError {
             DeviceError::Io {
                 node: node.to_path_buf(),
                 op,
-                source,
+                error,
             }
         }
     }

@@ -66,9 +66,9 @@ impl Mode {
             None => DEFAULT_MODE.resolution,
             Some(name) => parse_resolution(name)?,
         };
-        let offered = MODES.iter().filter(|m| m.resolution == resolution);
+        let mut offered = MODES.iter().filter(|m| m.resolution == resolution);
         let found = match fps {
-            None => offered.last(),
+            None => offered.next_back(),
             Some(f) => offered.into_iter().find(|m| m.fps as f64 == f),
         };
         found.copied().ok_or_else(|| ModeError::Unsupported {

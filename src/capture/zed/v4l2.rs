@@ -46,9 +46,9 @@ impl Opener for V4l2Opener {
             None => self.sysfs.find_zed()?,
         };
         let node = camera.node.clone();
-        let dev = v4l::Device::with_path(&node).map_err(|source| DeviceError::Open {
+        let dev = v4l::Device::with_path(&node).map_err(|error| DeviceError::Open {
             node: node.clone(),
-            source,
+            error,
         })?;
         let caps = dev
             .query_caps()
