@@ -91,6 +91,53 @@ pub fn rgb_to_hsv(r: u8, g: u8, b: u8) -> (u8, u8, u8) {
     (h, (s + 0.5) as u8, v as u8)
 }
 
+/// Fixed-point BT.601 coefficients of YUV → RGB (limited range: Y 16–235, U and V
+/// 16–240 around 128), scaled by 2²⁰ as in OpenCV's `COLOR_YUV2RGB_YUYV`.
+pub mod bt601 {
+    pub const SHIFT: i32 = 20;
+    pub const CY: i32 = 1_220_542;
+    pub const CUB: i32 = 2_116_026;
+    pub const CUG: i32 = -409_993;
+    pub const CVG: i32 = -852_492;
+    pub const CVR: i32 = 1_673_527;
+    /// Rounding term added before the shift.
+    pub const HALF: i32 = 1 << (SHIFT - 1);
+}
+
+/// One pixel of a UVC YUYV image (its luma `y` and the chroma `u`, `v` it shares with its
+/// neighbour) as RGB: BT.601, limited range, rounded and saturated.
+#[inline]
+pub fn yuv_to_rgb(y: u8, u: u8, v: u8) -> (u8, u8, u8) {
+    use bt601::*;
+    let (uu, vv) = (u as i32 - 128, v as i32 - 128);
+    let yy = (y as i32 - 16).max(0) * CY;
+    let channel = |c: i32| ((yy + HALF + c) >> SHIFT).clamp(0, 255) as u8;
+    (channel(CVR * vv), channel(CVG * vv + CUG * uu), channel(CUB * uu))
+}
+
+/// RGB → BT.601 limited-range `(Y, U, V)`, rounded: what a UVC camera sends for a colour
+/// (the inverse of [`yuv_to_rgb`] up to rounding).
+#[inline]
+pub fn rgb_to_yuv(r: u8, g: u8, b: u8) -> (u8, u8, u8) {
+    let (r, g, b) = (r as f32, g as f32, b as f32);
+    let y = 16.0 + (65.481 * r + 128.553 * g + 24.966 * b) / 255.0;
+    let u = 128.0 + (-37.797 * r - 74.203 * g + 112.0 * b) / 255.0;
+    let v = 128.0 + (112.0 * r - 93.786 * g - 18.214 * b) / 255.0;
+    let q = |x: f32| (x + 0.5).clamp(0.0, 255.0) as u8;
+    (q(y), q(u), q(v))
+}
+
+/// Encodes a row of RGB8 pixels (an even number) as YUYV, each pair sharing the mean of
+/// its two pixels' chroma, as a 4:2:2 camera does.
+pub fn rgb_row_to_yuyv(rgb: &[u8], yuyv: &mut [u8]) {
+    for (p, q) in rgb.chunks_exact(6).zip(yuyv.chunks_exact_mut(4)) {
+        let (y0, u0, v0) = rgb_to_yuv(p[0], p[1], p[2]);
+        let (y1, u1, v1) = rgb_to_yuv(p[3], p[4], p[5]);
+        let mean = |a: u8, b: u8| (a as u16 + b as u16).div_ceil(2) as u8;
+        q.copy_from_slice(&[y0, mean(u0, u1), y1, mean(v0, v1)]);
+    }
+}
+
 /// Circular mean of OpenCV hues; `None` for an empty set or hues that cancel out.
 pub fn circular_mean_hue(hues: impl IntoIterator<Item = u8>) -> Option<f64> {
     let (mut sx, mut sy, mut n) = (0.0f64, 0.0f64, 0usize);
@@ -123,6 +170,47 @@ mod tests {
         assert_eq!(rgb_to_hsv(50, 100, 200), (110, 191, 200));
         assert_eq!(rgb_to_hsv(255, 0, 128), (165, 255, 255));
         assert_eq!(rgb_to_hsv(0, 0, 0), (0, 0, 0));
+    }
+
+    #[test]
+    fn yuv_converts_as_bt601_limited_range() {
+        // Black, white, gray, then 75 % colour bars (191 = 0.75 · 255 within the
+        // rounding of their tabulated Y'CbCr).
+        assert_eq!(yuv_to_rgb(16, 128, 128), (0, 0, 0));
+        assert_eq!(yuv_to_rgb(235, 128, 128), (255, 255, 255));
+        assert_eq!(yuv_to_rgb(126, 128, 128), (128, 128, 128));
+        assert_eq!(yuv_to_rgb(0, 128, 128), (0, 0, 0));
+        assert_eq!(yuv_to_rgb(255, 128, 128), (255, 255, 255));
+        assert_eq!(yuv_to_rgb(65, 100, 212), (191, 0, 1));
+        assert_eq!(yuv_to_rgb(112, 72, 58), (0, 191, 0));
+        assert_eq!(yuv_to_rgb(35, 212, 114), (0, 1, 192));
+        assert_eq!(yuv_to_rgb(162, 44, 142), (192, 191, 0));
+        // Saturation at both ends.
+        assert_eq!(yuv_to_rgb(235, 255, 0), (51, 255, 255));
+        assert_eq!(yuv_to_rgb(16, 0, 255), (203, 0, 0));
+    }
+
+    #[test]
+    fn yuv_round_trips_within_rounding() {
+        for (r, g, b) in [
+            (0, 0, 0),
+            (255, 255, 255),
+            (200, 100, 50),
+            (50, 100, 200),
+            (255, 0, 128),
+        ] {
+            let (y, u, v) = rgb_to_yuv(r, g, b);
+            let back = yuv_to_rgb(y, u, v);
+            for (a, b) in [(back.0, r), (back.1, g), (back.2, b)] {
+                assert!(a.abs_diff(b) <= 2, "{:?} -> {:?}", (r, g, b), back);
+            }
+        }
+        let mut yuyv = [0u8; 4];
+        rgb_row_to_yuyv(&[255, 0, 0, 0, 0, 255], &mut yuyv);
+        let (red, blue) = (rgb_to_yuv(255, 0, 0), rgb_to_yuv(0, 0, 255));
+        assert_eq!(yuyv[0], red.0);
+        assert_eq!(yuyv[2], blue.0);
+        assert_eq!(yuyv[1], (red.1 as u16 + blue.1 as u16).div_ceil(2) as u8);
     }
 
     #[test]

@@ -415,6 +415,8 @@ pub struct DetectSettings {
 #[derive(Debug, Clone)]
 pub struct Config {
     pub calibration: Calibration,
+    /// The file `[camera] calibration` names; `None` for the built-in example.
+    pub calibration_file: Option<PathBuf>,
     /// `CL_T_H`: hand coordinates → left-camera coordinates.
     pub left_from_hand: Isometry3<f64>,
     pub search: SearchSpace,
@@ -459,10 +461,14 @@ impl Config {
             problem,
         };
         // No calibration named (or the built-in configuration's): the example file.
-        let calibration = match (&raw.camera.calibration, dir) {
-            (Some(c), Some(d)) => Calibration::load(&d.join(c))?,
-            (Some(c), None) if c != Path::new(EXAMPLE_CALIBRATION_NAME) => Calibration::load(c)?,
-            _ => Calibration::parse(EXAMPLE_CALIBRATION, Path::new("config/SN-example.conf"))?,
+        let calibration_file = match (&raw.camera.calibration, dir) {
+            (Some(c), Some(d)) => Some(d.join(c)),
+            (Some(c), None) if c != Path::new(EXAMPLE_CALIBRATION_NAME) => Some(c.clone()),
+            _ => None,
+        };
+        let calibration = match &calibration_file {
+            Some(path) => Calibration::load(path)?,
+            None => Calibration::parse(EXAMPLE_CALIBRATION, Path::new("config/SN-example.conf"))?,
         };
         let left_from_hand = pose(raw.hand_eye.translation_mm, raw.hand_eye.rotation_wxyz)
             .map_err(|p| invalid("hand_eye", "rotation_wxyz", p))?;
@@ -630,6 +636,7 @@ impl Config {
         }
         Ok(Config {
             calibration,
+            calibration_file,
             left_from_hand,
             search,
             ga,

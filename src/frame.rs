@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use nalgebra::{Isometry3, Point3};
 
 use crate::camera::{Intrinsics, StereoRig};
-use crate::color::{rgb_to_hsv, ColorClasses};
+use crate::color::{rgb_to_hsv, yuv_to_rgb, ColorClasses};
 
 /// A problem reading a frame.
 #[derive(Debug, thiserror::Error)]
@@ -90,6 +90,37 @@ impl StereoImages {
             for y in 0..height {
                 let start = y * row_stride + e * width * 3;
                 out.extend_from_slice(&bytes[start..start + width * 3]);
+            }
+            RgbImage::from_raw(width as u32, height as u32, out)
+        };
+        Some(Self {
+            left: eye(0)?,
+            right: eye(1)?,
+        })
+    }
+
+    /// Converts a side-by-side YUYV buffer (BT.601, [`crate::color::yuv_to_rgb`]) into
+    /// its eyes; `None` when the buffer is too small or an eye's width is odd.
+    pub fn from_yuyv_sbs(width: usize, height: usize, row_stride: usize, bytes: &[u8]) -> Option<Self> {
+        let row = 2 * width * 2;
+        if width == 0
+            || width % 2 != 0
+            || height == 0
+            || row_stride < row
+            || bytes.len() < row_stride * (height - 1) + row
+        {
+            return None;
+        }
+        let eye = |e: usize| {
+            let mut out = Vec::with_capacity(width * height * 3);
+            for y in 0..height {
+                let start = y * row_stride + e * width * 2;
+                for q in bytes[start..start + width * 2].chunks_exact(4) {
+                    for luma in [q[0], q[2]] {
+                        let (r, g, b) = yuv_to_rgb(luma, q[1], q[3]);
+                        out.extend_from_slice(&[r, g, b]);
+                    }
+                }
             }
             RgbImage::from_raw(width as u32, height as u32, out)
         };

@@ -12,10 +12,11 @@
 use rayon::prelude::*;
 
 use crate::camera::StereoRig;
-use crate::color::{ColorClasses, BLACK, GRAY, WHITE};
+use crate::color::{bt601, ColorClasses, BLACK, GRAY, WHITE};
 use image::RgbImage;
 
 use crate::frame::{coarse_levels, ColorPlane, FrameLevel, PixelColor, Region, StereoImages};
+use crate::messages::PixelFormat;
 
 /// Colour code of a texel outside the image: it matches no model colour and, for outer
 /// points, counts as target (a mismatch), as points outside an image do.
@@ -108,6 +109,63 @@ impl TexelRule {
             let (mut r, mut g, mut b) = ([0f32; N], [0f32; N], [0f32; N]);
             for i in 0..N {
                 (r[i], g[i], b[i]) = (src[3 * i] as f32, src[3 * i + 1] as f32, src[3 * i + 2] as f32);
+            }
+            let mut texels = [0; N];
+            for (i, t) in texels.iter_mut().enumerate() {
+                let (h, s, v) = hsv(r[i], g[i], b[i]);
+                *t = self.texel_of_hsv(h, s, v);
+            }
+            dst.copy_from_slice(&texels[..dst.len()]);
+        }
+    }
+
+    /// Texels of a row of YUYV pixels starting at an even pixel (`Y0 U Y1 V` per pair of
+    /// pixels, `yuyv` holding the pairs that cover `out`), exactly as
+    /// [`crate::color::yuv_to_rgb`], [`crate::color::rgb_to_hsv`] and
+    /// [`TexelRule::texel`] give them one by one, without an RGB image in between.
+    pub fn yuyv_row(&self, yuyv: &[u8], out: &mut [Texel]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, the only feature `yuyv_row_avx2` is compiled for.
+            return unsafe { self.yuyv_row_avx2(yuyv, out) };
+        }
+        self.yuyv_row_chunks(yuyv, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn yuyv_row_avx2(&self, yuyv: &[u8], out: &mut [Texel]) {
+        self.yuyv_row_chunks(yuyv, out)
+    }
+
+    #[inline(always)]
+    fn yuyv_row_chunks(&self, yuyv: &[u8], out: &mut [Texel]) {
+        use bt601::*;
+        const N: usize = 64;
+        let mut tail = [0u8; 2 * N];
+        for (src, dst) in yuyv.chunks(2 * N).zip(out.chunks_mut(N)) {
+            let src: &[u8; 2 * N] = match src.try_into() {
+                Ok(full) => full,
+                Err(_) => {
+                    tail[..src.len()].copy_from_slice(src);
+                    &tail
+                }
+            };
+            // Luma scaled, and the chroma terms of each pixel (shared by a pair).
+            let (mut yy, mut ru, mut gu, mut bu) = ([0i32; N], [0i32; N], [0i32; N], [0i32; N]);
+            for k in 0..N / 2 {
+                let q = &src[4 * k..4 * k + 4];
+                let (u, v) = (q[1] as i32 - 128, q[3] as i32 - 128);
+                let (r, g, b) = (HALF + CVR * v, HALF + CVG * v + CUG * u, HALF + CUB * u);
+                for (j, y) in [(2 * k, q[0]), (2 * k + 1, q[2])] {
+                    yy[j] = (y as i32 - 16).max(0) * CY;
+                    (ru[j], gu[j], bu[j]) = (r, g, b);
+                }
+            }
+            let (mut r, mut g, mut b) = ([0f32; N], [0f32; N], [0f32; N]);
+            for i in 0..N {
+                let channel = |c: i32| ((yy[i] + c) >> SHIFT).clamp(0, 255) as f32;
+                (r[i], g[i], b[i]) = (channel(ru[i]), channel(gu[i]), channel(bu[i]));
             }
             let mut texels = [0; N];
             for (i, t) in texels.iter_mut().enumerate() {
@@ -263,31 +321,64 @@ impl LookupImage {
         if w == 0 {
             return;
         }
-        for (y, row) in (y0..y1).zip(self.px.chunks_exact_mut(self.width).skip(1)) {
-            let src = &frame.bytes[y * frame.row_stride + (eye * frame.width + x0) * 3..][..3 * w];
-            rule.rgb_row(src, &mut row[1..=w]);
+        let rows = (y0..y1).zip(self.px.chunks_exact_mut(self.width).skip(1));
+        match frame.format {
+            PixelFormat::Rgb8 => {
+                for (y, row) in rows {
+                    let src = &frame.bytes[y * frame.row_stride + (eye * frame.width + x0) * 3..][..3 * w];
+                    rule.rgb_row(src, &mut row[1..=w]);
+                }
+            }
+            PixelFormat::Yuyv => {
+                // Pixel pairs share their chroma: an odd first column starts one pixel
+                // early, on the ring texel, which is then restored.
+                let start = x0 & !1;
+                for (y, row) in rows {
+                    let out = &mut row[1 + start - x0..=w];
+                    let pairs = out.len().div_ceil(2) * 4;
+                    let src = &frame.bytes[y * frame.row_stride + (eye * frame.width + start) * 2..][..pairs];
+                    rule.yuyv_row(src, out);
+                    row[0] = OUTSIDE_TEXEL;
+                }
+            }
         }
     }
 }
 
-/// A side-by-side RGB8 frame as it arrives (e.g. a shared-memory sample): `height` rows
-/// of `row_stride` bytes, eyes of `width` pixels.
+/// A side-by-side frame as it arrives (e.g. a shared-memory sample): `height` rows of
+/// `row_stride` bytes, eyes of `width` pixels, RGB8 or YUYV.
 #[derive(Debug, Clone, Copy)]
 pub struct SbsBytes<'a> {
     pub bytes: &'a [u8],
     pub width: usize,
     pub height: usize,
     pub row_stride: usize,
+    pub format: PixelFormat,
 }
 
 impl SbsBytes<'_> {
-    /// True when `bytes` holds the whole frame.
+    /// True when `bytes` holds the whole frame (and, for YUYV, each eye starts on a
+    /// whole pixel pair).
     pub fn is_complete(&self) -> bool {
-        let row = 2 * self.width * 3;
+        let row = 2 * self.width * self.format.bytes_per_pixel();
         self.width > 0
             && self.height > 0
+            && (self.format == PixelFormat::Rgb8 || self.width % 2 == 0)
             && self.row_stride >= row
             && self.bytes.len() >= self.row_stride * (self.height - 1) + row
+    }
+
+    /// Both eyes as RGB images (for a one-shot search over the whole frame); `None`
+    /// when the frame is not complete.
+    pub fn to_images(&self) -> Option<StereoImages> {
+        if !self.is_complete() {
+            return None;
+        }
+        let (w, h, stride) = (self.width, self.height, self.row_stride);
+        match self.format {
+            PixelFormat::Rgb8 => StereoImages::from_rgb8_sbs(w, h, stride, self.bytes),
+            PixelFormat::Yuyv => StereoImages::from_yuyv_sbs(w, h, stride, self.bytes),
+        }
     }
 }
 
@@ -408,6 +499,77 @@ mod tests {
         }
     }
 
+    /// Every YUV triple: the YUYV row path equals BT.601 to RGB, then the RGB reference.
+    #[test]
+    fn yuyv_rows_equal_the_reference_conversion_on_every_colour() {
+        use crate::color::yuv_to_rgb;
+        for second in [SecondByte::Saturation, SecondByte::RawHue] {
+            let rule = rule(second);
+            let mut yuyv = vec![0u8; 2 * 256];
+            let mut out = vec![0; 256];
+            for u in 0..=255u8 {
+                for v in 0..=255u8 {
+                    for (k, q) in yuyv.chunks_exact_mut(4).enumerate() {
+                        q.copy_from_slice(&[2 * k as u8, u, 2 * k as u8 + 1, v]);
+                    }
+                    rule.yuyv_row(&yuyv, &mut out);
+                    for (y, &t) in out.iter().enumerate() {
+                        let (r, g, b) = yuv_to_rgb(y as u8, u, v);
+                        let (h, s, val) = rgb_to_hsv(r, g, b);
+                        let want = rule.texel(rule.classes.code(h, s, val), s, h);
+                        assert_eq!(t, want, "yuv {y} {u} {v} ({second:?})");
+                    }
+                }
+            }
+        }
+    }
+
+    /// YUYV regions (odd and even edges, both eyes) read as their RGB conversion does.
+    #[test]
+    fn yuyv_refill_equals_the_refill_of_its_rgb_conversion() {
+        use rand::{Rng, SeedableRng};
+        let (w, h) = (10, 3);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let stride = 2 * w * 2 + 4;
+        let yuyv: Vec<u8> = (0..stride * h).map(|_| rng.random()).collect();
+        let frame = SbsBytes {
+            bytes: &yuyv,
+            width: w,
+            height: h,
+            row_stride: stride,
+            format: PixelFormat::Yuyv,
+        };
+        assert!(frame.is_complete());
+        let rgb = frame.to_images().unwrap().to_sbs();
+        let rgb_frame = SbsBytes {
+            bytes: rgb.as_raw(),
+            width: w,
+            height: h,
+            row_stride: 2 * w * 3,
+            format: PixelFormat::Rgb8,
+        };
+        let rule = rule(SecondByte::Saturation);
+        let (mut a, mut b) = (LookupImage::with_capacity(w, h), LookupImage::with_capacity(w, h));
+        let capacity = a.px.capacity();
+        for eye in 0..2 {
+            for cols in [0..10, 1..10, 1..9, 2..7, 3..4, 4..5, 9..12, 5..5] {
+                let roi = Region { cols, rows: 1..3 };
+                a.refill(&frame, eye, &roi, &rule);
+                b.refill(&rgb_frame, eye, &roi, &rule);
+                assert_eq!((a.width, a.height, a.origin), (b.width, b.height, b.origin), "{roi:?}");
+                assert_eq!(a.px, b.px, "eye {eye} {roi:?}");
+            }
+        }
+        assert_eq!(a.px.capacity(), capacity, "no reallocation");
+        // An odd eye width cannot be YUYV; a short payload is incomplete.
+        assert!(!SbsBytes { width: 5, ..frame }.is_complete());
+        assert!(!SbsBytes {
+            bytes: &yuyv[..stride * 2],
+            ..frame
+        }
+        .is_complete());
+    }
+
     #[test]
     fn whole_images_convert_like_the_scalar_colour_plane() {
         let img = RgbImage::from_fn(37, 5, |x, y| image::Rgb([(x * 7) as u8, (y * 50) as u8, (x * y) as u8]));
@@ -436,6 +598,7 @@ mod tests {
             width: 3,
             height: 2,
             row_stride: 20,
+            format: PixelFormat::Rgb8,
         };
         assert!(frame.is_complete());
         let rule = rule(SecondByte::Saturation);

@@ -14,7 +14,7 @@ use crate::camera::StereoRig;
 use crate::config::{Config, GaSettings, Mode, RobustSettings, TrackingSettings};
 use crate::estimate::{scorer_for, Prepared};
 use crate::fitness::{Fitness, PointSet, Scorer};
-use crate::frame::{Region, StereoImages};
+use crate::frame::Region;
 use crate::ga::robust::{mutate, Population};
 use crate::ga::{Bounds, Genes, Problem, GENES};
 use crate::lookup::{LevelLookup, SbsBytes};
@@ -263,7 +263,7 @@ impl StreamTracker {
         }
     }
 
-    /// Reads what the next step needs from a side-by-side RGB8 frame.
+    /// Reads what the next step needs from a side-by-side RGB8 or YUYV frame.
     pub fn prepare(&mut self, frame: &SbsBytes) -> Result<(), FrameError> {
         self.ready = None;
         if !frame.is_complete() {
@@ -296,13 +296,12 @@ impl StreamTracker {
                 Ready::Regions
             }
             None => {
-                let images = StereoImages::from_rgb8_sbs(frame.width, frame.height, frame.row_stride, frame.bytes)
-                    .ok_or(FrameError::Incomplete {
-                        len: frame.bytes.len(),
-                        width: frame.width,
-                        height: frame.height,
-                        stride: frame.row_stride,
-                    })?;
+                let images = frame.to_images().ok_or(FrameError::Incomplete {
+                    len: frame.bytes.len(),
+                    width: frame.width,
+                    height: frame.height,
+                    stride: frame.row_stride,
+                })?;
                 Ready::Acquire(Box::new(Prepared::new(&self.model, &images, &self.config)?))
             }
         };

@@ -6,8 +6,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nalgebra::{Isometry3, Translation3};
 use photopose::calibration::Resolution;
+use photopose::color::rgb_row_to_yuyv;
 use photopose::config::Config;
 use photopose::lookup::SbsBytes;
+use photopose::messages::PixelFormat;
 use photopose::model::PhotoModel;
 use photopose::render::{Renderer, SceneSpec};
 use photopose::tracking::StreamTracker;
@@ -69,6 +71,25 @@ fn tracking_frames_and_synthetic_frames_allocate_nothing() {
         width,
         height,
         row_stride: width * 6,
+        format: PixelFormat::Rgb8,
+    };
+    // The same frames as a ZED sends them.
+    let yuyv: Vec<Vec<u8>> = frames
+        .iter()
+        .map(|f| {
+            let mut out = vec![0u8; width * 4 * height];
+            for (src, dst) in f.chunks_exact(width * 6).zip(out.chunks_exact_mut(width * 4)) {
+                rgb_row_to_yuyv(src, dst);
+            }
+            out
+        })
+        .collect();
+    let yuyv_frame = |bytes| SbsBytes {
+        bytes,
+        width,
+        height,
+        row_stride: width * 4,
+        format: PixelFormat::Yuyv,
     };
 
     // The synthetic camera: a frame after the first renders without allocating.
@@ -83,27 +104,35 @@ fn tracking_frames_and_synthetic_frames_allocate_nothing() {
     let rendering = allocations() - before;
 
     // The estimator: acquisition and the first tracking frames may allocate (buffers
-    // grow to their working size); the frames after that may not.
-    let model = PhotoModel::load(&repo("tests/data/examples/rocket.model")).expect("model");
-    let mut tracker = StreamTracker::new(model, config.clone());
-    for f in &frames[..4] {
-        tracker.prepare(&frame(f.as_slice())).expect("frame");
-        tracker.step().expect("estimate");
-    }
-    let before = allocations();
-    let mut last = None;
-    for f in &frames[4..] {
-        tracker.prepare(&frame(f.as_slice())).expect("frame");
-        last = tracker.step();
-    }
-    let tracking = allocations() - before;
-    let est = last.expect("estimate");
+    // grow to their working size); the frames after that may not. Then the same frames
+    // as YUYV, converted straight from the payload.
     let truth: Isometry3<f64> = moved(frames.len() - 1);
-    let err = (est.best.position - truth.translation.vector).norm();
+    let track = |frames: Vec<SbsBytes>| {
+        let model = PhotoModel::load(&repo("tests/data/examples/rocket.model")).expect("model");
+        let mut tracker = StreamTracker::new(model, config.clone());
+        for f in &frames[..4] {
+            tracker.prepare(f).expect("frame");
+            tracker.step().expect("estimate");
+        }
+        let before = allocations();
+        let mut last = None;
+        for f in &frames[4..] {
+            tracker.prepare(f).expect("frame");
+            last = tracker.step();
+        }
+        let allocated = allocations() - before;
+        let est = last.expect("estimate");
+        (allocated, (est.best.position - truth.translation.vector).norm())
+    };
+    let (tracking, err) = track(frames.iter().map(|f| frame(f.as_slice())).collect());
+    let (tracking_yuyv, err_yuyv) = track(yuyv.iter().map(|f| yuyv_frame(f.as_slice())).collect());
     println!(
-        "allocations: {rendering} in 4 synthetic frames, {tracking} in 4 tracking frames (last error {err:.1} mm)"
+        "allocations: {rendering} in 4 synthetic frames, {tracking} in 4 tracking frames (last error {err:.1} mm), \
+         {tracking_yuyv} in 4 YUYV tracking frames (last error {err_yuyv:.1} mm)"
     );
     assert!(err < 10.0, "tracking went wrong: {err:.1} mm");
+    assert!(err_yuyv < 10.0, "tracking YUYV went wrong: {err_yuyv:.1} mm");
     assert_eq!(rendering, 0, "the synthetic camera allocated per frame");
     assert_eq!(tracking, 0, "the tracking loop allocated per frame");
+    assert_eq!(tracking_yuyv, 0, "the tracking loop allocated per YUYV frame");
 }

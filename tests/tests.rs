@@ -6,3 +6,4 @@ mod cli;
 mod detect;
 mod scenes;
 mod tracking;
+mod zed;

@@ -6,6 +6,7 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Translation3, Vector3};
 use photopose::lookup::SbsBytes;
 use photopose::messages::status;
+use photopose::messages::PixelFormat;
 use photopose::render::{self, Background, Card, Scene};
 use photopose::tracking::StreamTracker;
 
@@ -58,6 +59,7 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
             width: rig.width as usize,
             height: rig.height as usize,
             row_stride: sbs.width() as usize * 3,
+            format: PixelFormat::Rgb8,
         };
         let start = Instant::now();
         tracker.prepare(&frame).expect("HD frame");

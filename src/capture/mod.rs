@@ -6,12 +6,14 @@
 //! allocation and no extra copy. Sources now:
 //! - `synthetic[:SCENE.toml]` ([`synthetic`]): the synthetic camera, its card moving
 //!   along a scripted loop, with each frame's ground truth;
-//! - `replay:DIR` ([`replay`]): a recorded [`sequence`], at its recorded or a fixed rate.
+//! - `replay:DIR` ([`replay`]): a recorded [`sequence`], at its recorded or a fixed rate;
+//! - `zed` ([`zed`]): a ZED 2i over V4L2 (cargo feature `zed`).
 
 pub mod record;
 pub mod replay;
 pub mod sequence;
 pub mod synthetic;
+pub mod zed;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -28,14 +30,19 @@ pub enum Source {
     Synthetic(PathBuf),
     /// A recorded sequence directory.
     Replay(PathBuf),
+    /// A ZED camera over V4L2.
+    Zed,
 }
 
 /// Scene of `synthetic` without a file name.
 pub const DEFAULT_SCENE: &str = "config/scenes/rocket.toml";
 
 impl Source {
-    /// Parses `synthetic`, `synthetic:SCENE.toml` or `replay:DIR`.
+    /// Parses `synthetic`, `synthetic:SCENE.toml`, `replay:DIR` or `zed`.
     pub fn parse(s: &str) -> Result<Self, SourceError> {
+        if s == "zed" {
+            return Ok(Source::Zed);
+        }
         match s.split_once(':') {
             None if s == "synthetic" => Ok(Source::Synthetic(PathBuf::from(DEFAULT_SCENE))),
             Some(("synthetic", scene)) if !scene.is_empty() => Ok(Source::Synthetic(PathBuf::from(scene))),
@@ -48,7 +55,7 @@ impl Source {
 /// A frame source that cannot deliver.
 #[derive(Debug, thiserror::Error)]
 pub enum SourceError {
-    #[error("unknown source {0:?}: use synthetic[:SCENE.toml] or replay:DIR")]
+    #[error("unknown source {0:?}: use synthetic[:SCENE.toml], replay:DIR or zed")]
     Unknown(String),
     #[error(transparent)]
     Sequence(#[from] sequence::SequenceError),
@@ -125,6 +132,11 @@ pub trait FrameSource {
     /// Writes the due frame into `buf` ([`Geometry::frame_len`] bytes); `Ok(None)` when
     /// no frame came this time (the caller asks again).
     fn fill(&mut self, buf: &mut [u8]) -> Result<Option<FrameInfo>, SourceError>;
+
+    /// One line for the log when capture ends (counters of faults), if the source has one.
+    fn summary(&self) -> Option<String> {
+        None
+    }
 }
 
 #[cfg(test)]
@@ -145,10 +157,11 @@ mod tests {
             Source::parse("replay:rec/run1").unwrap(),
             Source::Replay(PathBuf::from("rec/run1"))
         );
-        for bad in ["webcam", "replay:", "synthetic:"] {
+        assert_eq!(Source::parse("zed").unwrap(), Source::Zed);
+        for bad in ["webcam", "replay:", "synthetic:", "zed:0"] {
             let e = Source::parse(bad).unwrap_err().to_string();
             assert!(
-                e.contains(bad) && e.contains("synthetic") && e.contains("replay"),
+                e.contains(bad) && e.contains("synthetic") && e.contains("replay") && e.contains("zed"),
                 "{e}"
             );
         }

@@ -150,6 +150,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             width: geometry.width as usize,
             height: geometry.height as usize,
             row_stride: geometry.row_stride(),
+            format: geometry.format,
         };
         let start = Instant::now();
         tracker.prepare(&frame)?;

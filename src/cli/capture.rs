@@ -19,13 +19,20 @@ use crate::messages::{monotonic_ns, FrameHeader, FRAMES_SERVICE, TRUTH_SERVICE};
 #[derive(clap::Args, Debug)]
 pub struct CaptureArgs {
     /// `synthetic[:SCENE.toml]` (the synthetic camera on a scene file, default
-    /// `config/scenes/rocket.toml`, its card moving along a smooth loop) or `replay:DIR`
-    /// (a recorded sequence).
+    /// `config/scenes/rocket.toml`, its card moving along a smooth loop), `replay:DIR`
+    /// (a recorded sequence) or `zed` (a ZED 2i over V4L2; build with `--features zed`).
     #[arg(long, default_value = "synthetic")]
     pub source: String,
-    /// Frame rate, frames per second (synthetic default 60; replay default: as recorded).
+    /// Frame rate, frames per second (synthetic default 60; replay default: as recorded;
+    /// zed: one of the resolution's rates, default the fastest).
     #[arg(long)]
     pub fps: Option<f64>,
+    /// Zed: the camera's resolution per eye, 2K, FHD, HD (default) or VGA.
+    #[arg(long, value_name = "NAME")]
+    pub resolution: Option<String>,
+    /// Zed: the video device (default: the first ZED found in sysfs).
+    #[arg(long, value_name = "/dev/videoN")]
+    pub device: Option<PathBuf>,
     /// Peak speed of the synthetic card, mm/s.
     #[arg(long, default_value_t = 150.0)]
     pub speed: f64,
@@ -53,8 +60,13 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
     if !(args.speed.is_finite() && args.speed >= 0.0) {
         bail!("--speed {} must be a number ≥ 0", args.speed);
     }
+    let source = Source::parse(&args.source)?;
+    if source != Source::Zed && (args.resolution.is_some() || args.device.is_some()) {
+        bail!("--resolution and --device apply to --source zed only");
+    }
     let config = Config::load(args.config.as_deref())?;
-    let mut source: Box<dyn FrameSource> = match Source::parse(&args.source)? {
+    let mut calibration = None;
+    let mut source: Box<dyn FrameSource> = match source {
         Source::Synthetic(scene) => Box::new(SyntheticSource::open(
             &scene,
             &config,
@@ -62,12 +74,24 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
             args.speed,
         )?),
         Source::Replay(dir) => Box::new(ReplaySource::open(&dir, args.fps, args.looping)?),
+        Source::Zed => {
+            let (zed, file) = zed::open(args, &config)?;
+            calibration = Some(file);
+            zed
+        }
     };
     let geometry = source.geometry();
     let mut recorder = match &args.record {
         Some(dir) => Some(Recorder::create(dir, geometry, &args.source)?),
         None => None,
     };
+    if let (Some(dir), Some(file)) = (&args.record, &calibration) {
+        // The recording keeps the calibration its frames need.
+        if let Some(name) = file.file_name() {
+            std::fs::copy(file, dir.join(name))
+                .map_err(|e| anyhow!("cannot copy {} into {}: {e}", file.display(), dir.display()))?;
+        }
+    }
     let ipc = Ipc::new("photopose-capture")?;
     let frames = ipc.frame_publisher(geometry.frame_len())?;
     let waker = ipc.waker(FRAMES_SERVICE)?;
@@ -123,6 +147,9 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
         }
     }
     tracing::info!("capture: {published} frames published");
+    if let Some(summary) = source.summary() {
+        tracing::info!("capture: {summary}");
+    }
     if let Some(rec) = recorder {
         let skipped = rec.skipped;
         let written = rec.finish()?;
@@ -130,4 +157,60 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
         tracing::info!("capture: recorded {written} frames into {dir} ({skipped} left out: the disk was behind)");
     }
     Ok(())
+}
+
+/// `--source zed`: the camera in the mode of `--resolution` and `--fps`, and its
+/// calibration file.
+#[cfg(feature = "zed")]
+mod zed {
+    use std::path::PathBuf;
+
+    use anyhow::Result;
+
+    use super::CaptureArgs;
+    use crate::calibration::Calibration;
+    use crate::capture::zed::discovery::{calibration_dirs, find_calibration, Sysfs};
+    use crate::capture::zed::stream::{Backoff, ZedSource};
+    use crate::capture::zed::v4l2::V4l2Opener;
+    use crate::capture::zed::Mode;
+    use crate::capture::FrameSource;
+    use crate::config::Config;
+
+    pub fn open(args: &CaptureArgs, config: &Config) -> Result<(Box<dyn FrameSource>, PathBuf)> {
+        let mode = Mode::select(args.resolution.as_deref(), args.fps)?;
+        let opener = V4l2Opener {
+            device: args.device.clone(),
+            sysfs: Sysfs::default(),
+        };
+        let source = ZedSource::open(opener, mode, Backoff::default())?;
+        let home = std::env::var_os("HOME").map(PathBuf::from);
+        let dirs = calibration_dirs(home.as_deref());
+        let file = find_calibration(
+            config.calibration_file.as_deref(),
+            source.info().serial.as_deref(),
+            &dirs,
+        )?;
+        Calibration::load(&file)?.rig(mode.resolution)?;
+        tracing::info!(
+            "capture: calibration {} (the estimator needs the same file in [camera] calibration)",
+            file.display()
+        );
+        Ok((Box::new(source), file))
+    }
+}
+
+/// `--source zed` in a build without the camera.
+#[cfg(not(feature = "zed"))]
+mod zed {
+    use std::path::PathBuf;
+
+    use anyhow::{bail, Result};
+
+    use super::CaptureArgs;
+    use crate::capture::FrameSource;
+    use crate::config::Config;
+
+    pub fn open(_: &CaptureArgs, _: &Config) -> Result<(Box<dyn FrameSource>, PathBuf)> {
+        bail!("--source zed needs the ZED camera support: rebuild with `cargo build --release --features zed`")
+    }
 }

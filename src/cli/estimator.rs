@@ -10,7 +10,7 @@ use anyhow::{anyhow, Result};
 use crate::config::Config;
 use crate::ipc::{send_pose, wake_up, Ipc};
 use crate::lookup::SbsBytes;
-use crate::messages::{monotonic_ns, pixel_format, FrameHeader, FRAMES_SERVICE, POSES_SERVICE};
+use crate::messages::{monotonic_ns, FrameHeader, PixelFormat, FRAMES_SERVICE, POSES_SERVICE};
 use crate::model::PhotoModel;
 use crate::realtime::{self, RealtimeSettings};
 use crate::tracking::StreamTracker;
@@ -68,19 +68,20 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
             None => {}
         }
         last_id = Some(header.frame_id);
-        if header.pixel_format != pixel_format::RGB8 {
+        let Some(format) = PixelFormat::from_code(header.pixel_format) else {
             tracing::warn!(
-                "estimator: frame {} skipped: pixel format {} (expected RGB8)",
+                "estimator: frame {} skipped: unknown pixel format {} (expected RGB8 or YUYV)",
                 header.frame_id,
                 header.pixel_format
             );
             continue;
-        }
+        };
         let frame = SbsBytes {
             bytes: sample.payload(),
             width: header.width as usize,
             height: header.height as usize,
             row_stride: header.row_stride as usize,
+            format,
         };
         if let Err(e) = tracker.prepare(&frame) {
             tracing::warn!("estimator: frame {} skipped: {e}", header.frame_id);

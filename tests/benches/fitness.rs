@@ -9,6 +9,7 @@ use std::sync::OnceLock;
 
 use divan::counter::ItemsCount;
 use divan::{black_box, Bencher};
+use photopose::color::rgb_row_to_yuyv;
 use photopose::config::Config;
 use photopose::estimate::Prepared;
 use photopose::fitness::Fitness;
@@ -16,6 +17,7 @@ use photopose::frame::{Region, StereoImages};
 use photopose::ga::robust::view_sample;
 use photopose::ga::{Genes, Problem};
 use photopose::lookup::{LevelLookup, LookupImage, SbsBytes};
+use photopose::messages::PixelFormat;
 use photopose::model::PhotoModel;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -33,6 +35,7 @@ struct Fixture {
     config: Config,
     images: StereoImages,
     sbs: Vec<u8>,
+    yuyv: Vec<u8>,
     prepared: Prepared,
     genes: Vec<Genes>,
 }
@@ -49,10 +52,13 @@ fn fixture() -> &'static Fixture {
         let mut rng = StdRng::seed_from_u64(1);
         let genes = (0..INDIVIDUALS).map(|_| view_sample(&one, &mut rng)).collect();
         let sbs = images.to_sbs().into_raw();
+        let mut yuyv = vec![0; sbs.len() / 3 * 2];
+        rgb_row_to_yuyv(&sbs, &mut yuyv);
         Fixture {
             config,
             images,
             sbs,
+            yuyv,
             prepared,
             genes,
         }
@@ -72,18 +78,29 @@ fn kernel(bencher: Bencher, threads: usize) {
         .bench_local(|| problem.evaluate_batch(0, black_box(&f.genes), &mut out));
 }
 
-/// Tracking's colour preparation: one whole HD eye converted from the frame's RGB rows
-/// into its lookup image (a tracking frame converts only regions of interest).
-#[divan::bench]
-fn colour_prep_eye(bencher: Bencher) {
+/// Tracking's colour preparation: one whole HD eye converted from the frame's RGB8
+/// (synthetic camera) or YUYV (ZED) rows into its lookup image (a tracking frame
+/// converts only regions of interest).
+#[divan::bench(args = [PixelFormat::Rgb8, PixelFormat::Yuyv])]
+fn colour_prep_eye(bencher: Bencher, format: PixelFormat) {
     let f = fixture();
     let (w, h) = f.images.eye_size();
     let (w, h) = (w as usize, h as usize);
-    let frame = SbsBytes {
-        bytes: &f.sbs,
-        width: w,
-        height: h,
-        row_stride: 2 * w * 3,
+    let frame = match format {
+        PixelFormat::Rgb8 => SbsBytes {
+            bytes: &f.sbs,
+            width: w,
+            height: h,
+            row_stride: 2 * w * 3,
+            format,
+        },
+        PixelFormat::Yuyv => SbsBytes {
+            bytes: &f.yuyv,
+            width: w,
+            height: h,
+            row_stride: 2 * w * 2,
+            format,
+        },
     };
     let rule = f.prepared.scorer.texel_rule();
     let mut image = LookupImage::with_capacity(w, h);
