@@ -86,21 +86,16 @@ fn colour_prep_eye(bencher: Bencher, format: PixelFormat) {
     let f = fixture();
     let (w, h) = f.images.eye_size();
     let (w, h) = (w as usize, h as usize);
-    let frame = match format {
-        PixelFormat::Rgb8 => SbsBytes {
-            bytes: &f.sbs,
-            width: w,
-            height: h,
-            row_stride: 2 * w * 3,
-            format,
-        },
-        PixelFormat::Yuyv => SbsBytes {
-            bytes: &f.yuyv,
-            width: w,
-            height: h,
-            row_stride: 2 * w * 2,
-            format,
-        },
+    let bytes = match format {
+        PixelFormat::Rgb8 => &f.sbs,
+        PixelFormat::Yuyv => &f.yuyv,
+    };
+    let frame = SbsBytes {
+        bytes,
+        width: w,
+        height: h,
+        row_stride: 2 * w * format.bytes_per_pixel(),
+        format,
     };
     let rule = f.prepared.scorer.texel_rule();
     let mut image = LookupImage::with_capacity(w, h);
