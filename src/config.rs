@@ -788,7 +788,11 @@ mod tests {
                 "[search] z_mm: [900, 300] is empty or inverted",
             ),
             ("invalid-nan.toml", "[search] x_mm: [NaN, 300] must be finite"),
-            ("invalid-unknown-key.toml", "unknown field `populaton`"),
+            (
+                "invalid-unknown-key.toml",
+                "unknown field `populaton`, expected one of `mode`, `population`, `generations`, `seed`, \
+                 `survivors`, `crossover_rate`, `bit_mutation_rate`, `threads` (line 4)",
+            ),
             ("invalid-syntax.toml", "line 3"),
             ("invalid-quaternion.toml", "not a unit quaternion"),
             ("invalid-missing-calibration.toml", "cannot read"),

@@ -4,5 +4,6 @@
 mod accuracy;
 mod cli;
 mod detect;
+mod robustness;
 mod scenes;
 mod tracking;
