@@ -317,11 +317,7 @@ mod tests {
         let h = hd(PixelFormat::Rgb8);
         let len = 720 * 7680;
         let cases = [
-            (
-                FrameHeader { pixel_format: 9, ..h },
-                len,
-                "unknown pixel format code 9",
-            ),
+            (FrameHeader { pixel_format: 9, ..h }, len, "unknown pixel format code 9"),
             (FrameHeader { width: 0, ..h }, len, "empty image (0x720 per eye)"),
             (FrameHeader { height: 0, ..h }, 0, "empty image (1280x0 per eye)"),
             (

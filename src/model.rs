@@ -285,11 +285,18 @@ impl PhotoModel {
         }
         let finite = model.inner.iter().all(|p| p.x.is_finite() && p.y.is_finite())
             && model.outer.iter().all(|p| p[0].is_finite() && p[1].is_finite())
-            && [model.mean_hue, model.mean_saturation, model.step_px, model.outer_width_px]
-                .iter()
-                .all(|v| v.is_finite() && *v >= 0.0);
+            && [
+                model.mean_hue,
+                model.mean_saturation,
+                model.step_px,
+                model.outer_width_px,
+            ]
+            .iter()
+            .all(|v| v.is_finite() && *v >= 0.0);
         if !finite {
-            return Err(invalid("a non-finite number, or a negative hue, saturation, step or strip width"));
+            return Err(invalid(
+                "a non-finite number, or a negative hue, saturation, step or strip width",
+            ));
         }
         Ok(model)
     }

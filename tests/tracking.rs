@@ -139,8 +139,5 @@ fn a_pose_below_the_fitness_floor_is_lost_never_tracking() {
         "{statuses:?}"
     );
     // Long before `lost_after_frames` (30) searching frames, the floor already says lost.
-    assert!(
-        statuses[3..].iter().any(|(s, _)| *s == status::LOST),
-        "{statuses:?}"
-    );
+    assert!(statuses[3..].iter().any(|(s, _)| *s == status::LOST), "{statuses:?}");
 }

@@ -91,10 +91,7 @@ mod tests {
         skips.fault(9, &FrameFault::UnknownPixelFormat { code: 7 });
         skips.unusable(10, &"size not calibrated");
         assert_eq!(skips.total(), 7);
-        assert_eq!(
-            skips.summary(),
-            "1 unknown pixel format, 5 wrong length, 1 not usable"
-        );
+        assert_eq!(skips.summary(), "1 unknown pixel format, 5 wrong length, 1 not usable");
         // The first of each reason was logged; the other four wait for the next line.
         assert_eq!(skips.unlogged[FrameFault::KINDS.len() - 1], 4);
         assert_eq!(skips.unlogged[0], 0);
