@@ -105,7 +105,7 @@ impl Tracker {
         let tracked = fitness.f >= self.settings.min_fitness;
         self.searching = if tracked { 0 } else { self.searching + 1 };
         // Below the floor (or NaN) the pose is never called tracked.
-        let status = if !(fitness.f >= self.settings.lost_fitness) {
+        let status = if fitness.f.is_nan() || fitness.f < self.settings.lost_fitness {
             status::LOST
         } else if tracked {
             status::TRACKING

@@ -735,7 +735,7 @@ fn twenty_random_kills_and_restarts() {
         );
         // The client sees a fresh pose again.
         let fresh_by = Instant::now() + Duration::from_secs(3);
-        while !client.latest().is_some_and(|l| !l.stale) && Instant::now() < fresh_by {
+        while client.latest().is_none_or(|l| l.stale) && Instant::now() < fresh_by {
             client.poll().expect("poll");
             std::thread::sleep(Duration::from_millis(2));
         }
