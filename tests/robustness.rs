@@ -1,15 +1,17 @@
 //! Property tests: random and mutated input to every parser (calibration, configuration,
-//! photo-model, images) and to the validation of shared-memory frames never panics, every
+//! photo-model, images, scene files, replay frame lists) and to the validation of shared-memory frames never panics, every
 //! error is one line naming the file, and whatever is accepted is safe to use.
 
 use std::path::Path;
 
 use photopose::calibration::{Calibration, Resolution};
+use photopose::capture::sequence::FrameRecord;
 use photopose::config::{Config, DEFAULT_TOML, EXAMPLE_CALIBRATION};
 use photopose::frame::StereoImages;
 use photopose::lookup::SbsBytes;
 use photopose::messages::{validate_frame, FrameFault, FrameHeader, PixelFormat};
 use photopose::model::PhotoModel;
+use photopose::render::SceneSpec;
 use proptest::prelude::*;
 
 use crate::scenes::data;
@@ -115,6 +117,14 @@ proptest! {
         }
     }
 
+    /// A line of a replay's `frames.csv`.
+    #[test]
+    fn replay_frame_line_parser(line in inputs("3,1234567,000003.png,1.5,-2,650,0.96,0.26,0,0.05,180,159".to_string())) {
+        if let Err(e) = FrameRecord::parse(&line) {
+            prop_assert!(!e.contains('\n'), "{e}");
+        }
+    }
+
     /// Any header with any payload length: validation never panics, and a frame it
     /// passes can be read with the header's geometry.
     #[test]
@@ -188,6 +198,22 @@ proptest! {
         }
         let _ = std::fs::remove_file(&path);
     }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Scene files of the synthetic camera.
+    #[test]
+    fn scene_parser(text in inputs(std::fs::read_to_string(scene_path()).expect("scene"))) {
+        if let Err(e) = SceneSpec::from_toml_str(&text, &scene_path()) {
+            one_line(&e, "rocket.toml")?;
+        }
+    }
+}
+
+fn scene_path() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("config/scenes/rocket.toml")
 }
 
 fn encoded(format: image::ImageFormat) -> Vec<u8> {
