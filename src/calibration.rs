@@ -86,7 +86,8 @@ pub enum CalibrationError {
     #[error("{}: line {line}: expected `key=value` or `[SECTION]`, found {text:?}", .path.display())]
     Syntax { path: PathBuf, line: usize, text: String },
     /// A calibration value does not parse as a number.
-    #[error("{}: line {line}: value {value:?} for key {key} is not a number", .path.display())]
+    #[error("{}: line {line}: value {value:?} for key {key} is not a number{}", .path.display(),
+        if .value.contains(',') { " (the decimal separator is '.')" } else { "" })]
     NotANumber {
         path: PathBuf,
         line: usize,
@@ -717,6 +718,14 @@ mod tests {
             (
                 simple_with("[STEREO]", "[OTHER]"),
                 "section [STEREO] is missing (needed for HD)",
+            ),
+            (
+                simple_with("fx=700", "fx=699,81"),
+                "line 2: value \"699,81\" for key fx is not a number (the decimal separator is '.')",
+            ),
+            (
+                simple_with("fx=700", "fx=0"),
+                "line 2: value 0 for key fx must be positive",
             ),
             (
                 simple_with("fx=700", "fx 700"),

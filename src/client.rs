@@ -130,7 +130,9 @@ impl Latest {
 
     /// Why the pose must not be acted on, if it must not.
     pub fn hold(&self) -> Option<Hold> {
-        if self.stale {
+        if !self.pose.is_sound() {
+            Some(Hold::Unsound)
+        } else if self.stale {
             Some(Hold::Stale)
         } else if self.pose.status != status::TRACKING {
             Some(Hold::NotTracking(self.pose.status))
@@ -142,6 +144,7 @@ impl Latest {
     /// [`Latest::hold`] in words.
     pub fn hold_reason(&self) -> Option<String> {
         self.hold().map(|h| match h {
+            Hold::Unsound => "unsound pose (NaN, infinity, unknown status or non-unit quaternion)".into(),
             Hold::Stale => format!("stale pose: frame {} is {:.0} ms old", self.pose.frame_id, ms(self.age)),
             Hold::NotTracking(s) => format!("estimator status {}", status_name(s)),
         })
@@ -161,6 +164,9 @@ impl Latest {
 /// Why a pose must not be acted on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Hold {
+    /// A number is NaN or infinite, the status unknown or the quaternion not unit: a
+    /// broken or foreign publisher.
+    Unsound,
     /// Older than the deadline: the estimator or the camera has stopped.
     Stale,
     /// The estimator is searching for or has lost the object.
@@ -344,6 +350,11 @@ mod tests {
         let lost = Latest::judge(pose(3, 1_000_000_000, status::LOST), 1_010_000_000, deadline);
         assert!(!lost.usable());
         assert_eq!(lost.hold_reason().unwrap(), "estimator status lost");
+        // A fresh, tracking pose with a NaN is never acted on.
+        let mut broken = pose(4, 1_000_000_000, status::TRACKING);
+        broken.position_mm[2] = f64::NAN;
+        let broken = Latest::judge(broken, 1_010_000_000, deadline);
+        assert_eq!(broken.hold(), Some(Hold::Unsound));
         // A clock that appears to run backwards gives age 0, not a panic.
         assert_eq!(
             Latest::judge(pose(1, 5, status::TRACKING), 1, deadline).age,

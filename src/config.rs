@@ -226,6 +226,9 @@ pub struct TrackingSettings {
     pub sigma: f64,
     /// Below this `F` the object counts as not tracked (status `searching`).
     pub min_fitness: f64,
+    /// The floor: a pose whose `F` is below this is published as `lost`, never
+    /// `tracking` or `searching` (0 ≤ `lost_fitness` ≤ `min_fitness`).
+    pub lost_fitness: f64,
     /// Share of each generation replaced by view-prior immigrants while searching.
     pub immigrants: f64,
     /// Frames of searching before the object is `lost` and acquired afresh.
@@ -243,6 +246,7 @@ impl Default for TrackingSettings {
             threads: 1,
             sigma: 0.003,
             min_fitness: 1.0,
+            lost_fitness: 0.5,
             immigrants: 0.2,
             lost_after_frames: 30,
             acquire_generations: 300,
@@ -578,6 +582,23 @@ impl Config {
         if !(tracking.sigma.is_finite() && tracking.sigma > 0.0) {
             return Err(invalid("tracking", "sigma", format!("{} must be > 0", tracking.sigma)));
         }
+        if !(tracking.min_fitness.is_finite() && tracking.min_fitness >= 0.0) {
+            return Err(invalid(
+                "tracking",
+                "min_fitness",
+                format!("{} must be a non-negative number", tracking.min_fitness),
+            ));
+        }
+        if !(tracking.lost_fitness >= 0.0 && tracking.lost_fitness <= tracking.min_fitness) {
+            return Err(invalid(
+                "tracking",
+                "lost_fitness",
+                format!(
+                    "{} must lie in [0, min_fitness = {}]",
+                    tracking.lost_fitness, tracking.min_fitness
+                ),
+            ));
+        }
         if !(0.0..1.0).contains(&tracking.immigrants) {
             return Err(invalid(
                 "tracking",
@@ -781,7 +802,11 @@ mod tests {
                 "[search] z_mm: [900, 300] is empty or inverted",
             ),
             ("invalid-nan.toml", "[search] x_mm: [NaN, 300] must be finite"),
-            ("invalid-unknown-key.toml", "unknown field `populaton`"),
+            (
+                "invalid-unknown-key.toml",
+                "unknown field `populaton`, expected one of `mode`, `population`, `generations`, `seed`, \
+                 `survivors`, `crossover_rate`, `bit_mutation_rate`, `threads` (line 4)",
+            ),
             ("invalid-syntax.toml", "line 3"),
             ("invalid-quaternion.toml", "not a unit quaternion"),
             ("invalid-missing-calibration.toml", "cannot read"),

@@ -38,21 +38,17 @@ pub struct StereoImages {
 }
 
 fn read_rgb(path: &Path) -> Result<RgbImage, FrameError> {
+    // Decoder messages may span lines; errors here are one line.
+    let error = |e: &dyn std::fmt::Display| FrameError::Image {
+        path: path.to_path_buf(),
+        message: e.to_string().trim().replace('\n', "; "),
+    };
     let img = image::ImageReader::open(path)
-        .map_err(|e| FrameError::Image {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?
+        .map_err(|e| error(&e))?
         .with_guessed_format()
-        .map_err(|e| FrameError::Image {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?
+        .map_err(|e| error(&e))?
         .decode()
-        .map_err(|e| FrameError::Image {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+        .map_err(|e| error(&e))?;
     Ok(img.to_rgb8())
 }
 

@@ -294,10 +294,12 @@ impl LookupImage {
     }
 
     /// An empty region (every point reads "outside") with room for a whole
-    /// `width × height` image, so refills never allocate.
+    /// `width × height` image, so refills never allocate. The whole capacity is written
+    /// once here: its pages are resident from the start, and the loop takes no page
+    /// faults on them as the regions move over the image.
     pub fn with_capacity(width: usize, height: usize) -> Self {
-        let mut px = Vec::with_capacity((width + 2) * (height + 2));
-        px.extend_from_slice(&[OUTSIDE_TEXEL; 4]);
+        let mut px = vec![OUTSIDE_TEXEL; (width + 2) * (height + 2)];
+        px.truncate(4);
         Self {
             width: 2,
             height: 2,

@@ -87,6 +87,80 @@ pub struct FrameHeader {
     pub publish_time_ns: u64,
 }
 
+/// Why a received frame cannot be used: its header disagrees with its payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum FrameFault {
+    #[error("unknown pixel format code {code}")]
+    UnknownPixelFormat { code: u32 },
+    #[error("empty image ({width}x{height} per eye)")]
+    Empty { width: u32, height: u32 },
+    #[error("YUYV eye width {width} is odd (YUYV pixels come in pairs)")]
+    OddYuyvWidth { width: u32 },
+    #[error("row stride {stride} is shorter than a side-by-side row of {row} bytes")]
+    StrideTooShort { stride: u32, row: u64 },
+    #[error("payload of {len} bytes, but the header says {expected} ({height} rows of {stride} bytes)")]
+    LengthMismatch {
+        len: usize,
+        expected: u64,
+        height: u32,
+        stride: u32,
+    },
+}
+
+impl FrameFault {
+    /// Every kind, in the order of [`FrameFault::index`].
+    pub const KINDS: [&'static str; 5] = [
+        "unknown pixel format",
+        "empty image",
+        "odd YUYV width",
+        "short stride",
+        "wrong length",
+    ];
+
+    /// A stable index per kind (for counting).
+    pub fn index(&self) -> usize {
+        match self {
+            FrameFault::UnknownPixelFormat { .. } => 0,
+            FrameFault::Empty { .. } => 1,
+            FrameFault::OddYuyvWidth { .. } => 2,
+            FrameFault::StrideTooShort { .. } => 3,
+            FrameFault::LengthMismatch { .. } => 4,
+        }
+    }
+}
+
+/// Checks a received frame's header against its payload: a known pixel format, a
+/// non-empty image (of whole pixel pairs per YUYV eye), a row stride that holds both eyes' pixels
+/// (`2 · width · bytes per pixel`), and exactly `height · row_stride` payload bytes.
+/// Only a frame that passes may be read with the header's geometry.
+pub fn validate_frame(header: &FrameHeader, payload_len: usize) -> Result<PixelFormat, FrameFault> {
+    let format = PixelFormat::from_code(header.pixel_format).ok_or(FrameFault::UnknownPixelFormat {
+        code: header.pixel_format,
+    })?;
+    let (width, height, stride) = (header.width, header.height, header.row_stride);
+    if width == 0 || height == 0 {
+        return Err(FrameFault::Empty { width, height });
+    }
+    if format == PixelFormat::Yuyv && width % 2 != 0 {
+        return Err(FrameFault::OddYuyvWidth { width });
+    }
+    // u64: no header can overflow these.
+    let row = 2 * width as u64 * format.bytes_per_pixel() as u64;
+    if (stride as u64) < row {
+        return Err(FrameFault::StrideTooShort { stride, row });
+    }
+    let expected = height as u64 * stride as u64;
+    if payload_len as u64 != expected {
+        return Err(FrameFault::LengthMismatch {
+            len: payload_len,
+            expected,
+            height,
+            stride,
+        });
+    }
+    Ok(format)
+}
+
 /// Tracking status of a [`PoseMsg`].
 pub mod status {
     /// The object is tracked; the pose is current.
@@ -119,6 +193,52 @@ pub struct PoseMsg {
     pub generations: u32,
     /// One of [`status`].
     pub status: u32,
+}
+
+/// Largest deviation of a published quaternion's norm from 1.
+pub const UNIT_TOLERANCE: f64 = 1e-9;
+
+impl PoseMsg {
+    /// Every number finite, a known status, and a unit orientation quaternion with
+    /// `w ≥ 0`: the only poses photopose publishes.
+    pub fn is_sound(&self) -> bool {
+        let q = self.orientation_wxyz;
+        let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        self.position_mm
+            .iter()
+            .chain(&self.size_mm)
+            .chain(&q)
+            .chain([&self.fitness])
+            .all(|v| v.is_finite())
+            && (norm - 1.0).abs() <= UNIT_TOLERANCE
+            && q[0] >= 0.0
+            && self.status <= status::LOST
+    }
+
+    /// Makes the pose sound: normalises the quaternion to `w ≥ 0`. A pose with a NaN or
+    /// infinite number, a zero quaternion or an unknown status cannot be repaired: it
+    /// becomes `lost` at the origin with the identity rotation, zero size and fitness 0.
+    pub fn sanitize(&mut self) {
+        let q = self.orientation_wxyz;
+        let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if norm.is_finite() && norm > 0.0 {
+            let sign = if q[0] < 0.0 { -1.0 } else { 1.0 };
+            self.orientation_wxyz = q.map(|v| sign * v / norm);
+        }
+        if !self.is_sound() {
+            *self = PoseMsg {
+                orientation_wxyz: [1.0, 0.0, 0.0, 0.0],
+                status: status::LOST,
+                ..PoseMsg {
+                    frame_id: self.frame_id,
+                    capture_time_ns: self.capture_time_ns,
+                    publish_time_ns: self.publish_time_ns,
+                    generations: self.generations,
+                    ..PoseMsg::default()
+                }
+            };
+        }
+    }
 }
 
 /// CLOCK_MONOTONIC now, ns: the time base of every timestamp in the messages.
@@ -177,6 +297,123 @@ mod tests {
             unsafe { <FrameHeader as ZeroCopySend>::type_name() },
             "PhotoposeFrameHeader"
         );
+    }
+
+    fn hd(format: PixelFormat) -> FrameHeader {
+        let stride = 2 * 1280 * format.bytes_per_pixel() as u32;
+        FrameHeader {
+            width: 1280,
+            height: 720,
+            pixel_format: format.code(),
+            row_stride: stride,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn frames_whose_header_matches_the_payload_pass() {
+        for format in [PixelFormat::Rgb8, PixelFormat::Yuyv] {
+            let h = hd(format);
+            assert_eq!(validate_frame(&h, 720 * h.row_stride as usize), Ok(format));
+            // Padded rows are fine when the payload holds them.
+            let padded = FrameHeader {
+                row_stride: h.row_stride + 64,
+                ..h
+            };
+            assert_eq!(validate_frame(&padded, 720 * padded.row_stride as usize), Ok(format));
+        }
+    }
+
+    #[test]
+    fn each_disagreement_has_its_reason() {
+        let h = hd(PixelFormat::Rgb8);
+        let len = 720 * 7680;
+        let cases = [
+            (FrameHeader { pixel_format: 9, ..h }, len, "unknown pixel format code 9"),
+            (FrameHeader { width: 0, ..h }, len, "empty image (0x720 per eye)"),
+            (FrameHeader { height: 0, ..h }, 0, "empty image (1280x0 per eye)"),
+            (
+                FrameHeader { row_stride: 7679, ..h },
+                len,
+                "row stride 7679 is shorter than a side-by-side row of 7680 bytes",
+            ),
+            // A YUYV header on an RGB8-sized payload.
+            (
+                FrameHeader {
+                    pixel_format: pixel_format::YUYV,
+                    row_stride: 5120,
+                    ..h
+                },
+                len,
+                "payload of 5529600 bytes, but the header says 3686400 (720 rows of 5120 bytes)",
+            ),
+            (
+                h,
+                len - 1,
+                "payload of 5529599 bytes, but the header says 5529600 (720 rows of 7680 bytes)",
+            ),
+            (
+                FrameHeader {
+                    width: u32::MAX,
+                    row_stride: u32::MAX,
+                    ..h
+                },
+                len,
+                "row stride 4294967295 is shorter than a side-by-side row of 25769803770 bytes",
+            ),
+        ];
+        for (header, len, reason) in cases {
+            assert_eq!(validate_frame(&header, len).unwrap_err().to_string(), reason);
+        }
+    }
+
+    #[test]
+    fn sanitize_normalises_or_declares_lost() {
+        let good = PoseMsg {
+            frame_id: 7,
+            position_mm: [1.0, 2.0, 600.0],
+            orientation_wxyz: [-2.0, 0.0, 0.0, 0.0],
+            size_mm: [100.0, 80.0],
+            fitness: 1.5,
+            status: status::TRACKING,
+            ..Default::default()
+        };
+        let mut p = good;
+        p.sanitize();
+        assert_eq!(p.orientation_wxyz, [1.0, 0.0, 0.0, 0.0]);
+        assert_eq!((p.status, p.position_mm), (status::TRACKING, good.position_mm));
+        assert!(p.is_sound());
+        let broken = [
+            PoseMsg {
+                position_mm: [f64::NAN, 0.0, 0.0],
+                ..good
+            },
+            PoseMsg {
+                size_mm: [f64::INFINITY, 1.0],
+                ..good
+            },
+            PoseMsg {
+                orientation_wxyz: [0.0; 4],
+                ..good
+            },
+            PoseMsg {
+                orientation_wxyz: [f64::NAN, 1.0, 0.0, 0.0],
+                ..good
+            },
+            PoseMsg {
+                fitness: f64::NAN,
+                ..good
+            },
+            PoseMsg { status: 9, ..good },
+        ];
+        for b in broken {
+            assert!(!b.is_sound(), "{b:?}");
+            let mut p = b;
+            p.sanitize();
+            assert!(p.is_sound(), "{p:?}");
+            assert_eq!(p.status, status::LOST, "{b:?}");
+            assert_eq!((p.frame_id, p.position_mm, p.fitness), (7, [0.0; 3], 0.0));
+        }
     }
 
     #[test]

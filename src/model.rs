@@ -52,7 +52,7 @@ pub struct PixelBox {
 
 /// An inner sampling point: position relative to the box centre (photo pixels) and colour.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(from = "[f64; 5]", into = "[f64; 5]")]
+#[serde(try_from = "[f64; 5]", into = "[f64; 5]")]
 pub struct InnerPoint {
     pub x: f64,
     pub y: f64,
@@ -61,16 +61,25 @@ pub struct InnerPoint {
     pub v: u8,
 }
 
-impl From<[f64; 5]> for InnerPoint {
-    fn from(a: [f64; 5]) -> Self {
-        let byte = |v: f64| v.clamp(0.0, 255.0) as u8;
-        Self {
-            x: a[0],
-            y: a[1],
-            h: byte(a[2]).min(179),
-            s: byte(a[3]),
-            v: byte(a[4]),
+impl TryFrom<[f64; 5]> for InnerPoint {
+    type Error = String;
+
+    /// A point as stored: its colour must be OpenCV HSV (H 0–179, S and V 0–255).
+    fn try_from(a: [f64; 5]) -> Result<Self, String> {
+        let [x, y, h, s, v] = a;
+        let in_range = |c: f64, max: f64| (0.0..=max).contains(&c);
+        if !(in_range(h, 179.0) && in_range(s, 255.0) && in_range(v, 255.0)) {
+            return Err(format!(
+                "inner point ({x}, {y}) has colour [{h}, {s}, {v}] outside H 0–179, S and V 0–255"
+            ));
         }
+        Ok(Self {
+            x,
+            y,
+            h: h.round() as u8,
+            s: s.round() as u8,
+            v: v.round() as u8,
+        })
     }
 }
 
@@ -238,7 +247,12 @@ impl PhotoModel {
             path: path.to_path_buf(),
             source,
         })?;
-        let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| ModelError::Parse {
+        Self::parse(&text, path)
+    }
+
+    /// Parses and checks model file text; `path` only names the file in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<PhotoModel, ModelError> {
+        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| ModelError::Parse {
             path: path.to_path_buf(),
             message: e.to_string(),
         })?;
@@ -271,9 +285,18 @@ impl PhotoModel {
         }
         let finite = model.inner.iter().all(|p| p.x.is_finite() && p.y.is_finite())
             && model.outer.iter().all(|p| p[0].is_finite() && p[1].is_finite())
-            && model.mean_hue.is_finite();
+            && [
+                model.mean_hue,
+                model.mean_saturation,
+                model.step_px,
+                model.outer_width_px,
+            ]
+            .iter()
+            .all(|v| v.is_finite() && *v >= 0.0);
         if !finite {
-            return Err(invalid("a non-finite number"));
+            return Err(invalid(
+                "a non-finite number, or a negative hue, saturation, step or strip width",
+            ));
         }
         Ok(model)
     }

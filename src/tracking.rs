@@ -104,7 +104,10 @@ impl Tracker {
         self.last_best = Some(best);
         let tracked = fitness.f >= self.settings.min_fitness;
         self.searching = if tracked { 0 } else { self.searching + 1 };
-        let status = if tracked {
+        // Below the floor (or NaN) the pose is never called tracked.
+        let status = if fitness.f.is_nan() || fitness.f < self.settings.lost_fitness {
+            status::LOST
+        } else if tracked {
             status::TRACKING
         } else if self.searching > self.settings.lost_after_frames {
             status::LOST
@@ -322,10 +325,11 @@ impl StreamTracker {
         })
     }
 
-    /// The pose message of an estimate for frame `frame_id` (publish time not set).
+    /// The pose message of an estimate for frame `frame_id` (publish time not set),
+    /// [sanitized](PoseMsg::sanitize): finite, unit quaternion, `lost` when it cannot be.
     pub fn pose_msg(&self, est: &Estimate, frame_id: u64, capture_time_ns: u64) -> PoseMsg {
         let b = &est.best;
-        PoseMsg {
+        let mut pose = PoseMsg {
             frame_id,
             capture_time_ns,
             publish_time_ns: 0,
@@ -335,6 +339,8 @@ impl StreamTracker {
             fitness: est.fitness.f,
             generations: est.generations,
             status: est.status,
-        }
+        };
+        pose.sanitize();
+        pose
     }
 }

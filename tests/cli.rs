@@ -270,3 +270,145 @@ fn bench_json_reports_every_figure() {
         "error: --individuals must be ≥ 1 and --frames ≥ 2"
     );
 }
+
+/// Every class of bad input, one case each: exit status 1, exactly one line on stderr
+/// naming the file and the problem, no panic, nothing written.
+#[test]
+fn each_bad_input_class_exits_with_one_line() {
+    let dir = scratch("bad-input-classes");
+    let p = |f: &str| dir.join(f).display().to_string();
+    let write = |f: &str, text: &str| std::fs::write(p(f), text).unwrap();
+    let coffee = data("photos/coffee.jpg").display().to_string();
+    let example = std::fs::read_to_string(repo("config/SN-example.conf")).unwrap();
+    // Calibration files, each named by a configuration next to it.
+    let calibrations = [
+        (
+            "missing-section.conf",
+            example.replace("[STEREO]", "[STEREO_OLD]"),
+            "section [STEREO] is missing",
+        ),
+        (
+            "missing-key.conf",
+            example.replacen("cy=", "cz=", 1),
+            "section [LEFT_CAM_2K] lacks key cy",
+        ),
+        (
+            "not-a-number.conf",
+            example.replacen("fx=", "fx=abc", 1),
+            "for key fx is not a number",
+        ),
+        (
+            "decimal-comma.conf",
+            example.replacen("fx=1207.17", "fx=1207,17", 1),
+            "value \"1207,17\" for key fx is not a number (the decimal separator is '.')",
+        ),
+        (
+            "zero-focal.conf",
+            example.replacen("fx=1207.17", "fx=0", 1),
+            "value 0 for key fx must be positive",
+        ),
+    ];
+    for (name, text, problem) in &calibrations {
+        write(name, text);
+        let cfg = format!("{name}.toml");
+        write(&cfg, &format!("[camera]\ncalibration = {name:?}\n"));
+        fails_with(&model_with_config(&coffee, &p("x.model"), &p(&cfg)), &[name, problem]);
+    }
+    // Configuration files.
+    let configs = [
+        (
+            "unknown-key.toml",
+            "[ga]\npopulaton = 50\n",
+            "unknown field `populaton`, expected one of `mode`, `population`, `generations`, `seed`",
+        ),
+        (
+            "nan.toml",
+            "[search]\nx_mm = [nan, 300.0]\n",
+            "[search] x_mm: [NaN, 300] must be finite numbers",
+        ),
+        (
+            "inverted.toml",
+            "[search]\nsize_mm = [400.0, 20.0]\n",
+            "[search] size_mm: [400, 20] is empty or inverted",
+        ),
+        (
+            "empty-range.toml",
+            "[search]\nz_mm = [500.0, 500.0]\n",
+            "[search] z_mm: [500, 500] is empty or inverted",
+        ),
+        (
+            "population-0.toml",
+            "[ga]\npopulation = 0\n",
+            "[ga] population: 0 is too small (at least 4)",
+        ),
+        (
+            "floor.toml",
+            "[tracking]\nlost_fitness = 1.5\n",
+            "[tracking] lost_fitness: 1.5 must lie in [0, min_fitness = 1]",
+        ),
+    ];
+    for (name, text, problem) in configs {
+        write(name, text);
+        fails_with(&model_with_config(&coffee, &p("x.model"), &p(name)), &[name, problem]);
+    }
+    // Model files, then frames, through `photopose estimate`.
+    let model = std::fs::read_to_string(data("examples/rocket.model")).unwrap();
+    let first = model.find("\"inner\":[").unwrap() + 9;
+    let models = [
+        (
+            "truncated.model",
+            model[..model.len() / 2].to_string(),
+            "not a photopose model: EOF",
+        ),
+        (
+            "version.model",
+            model.replacen("\"version\":1", "\"version\":7", 1),
+            "model format version 7 is not supported (this build reads 1)",
+        ),
+        (
+            "nan-colour.model",
+            format!("{}[0.0,0.0,NaN,1.0,1.0],{}", &model[..first], &model[first..]),
+            "not a photopose model: expected value",
+        ),
+        (
+            "bad-colour.model",
+            format!("{}[0.0,0.0,300.0,1.0,1.0],{}", &model[..first], &model[first..]),
+            "colour [300, 1, 1] outside H 0–179, S and V 0–255",
+        ),
+    ];
+    let frame = data("examples/rocket-frame.jpg").display().to_string();
+    for (name, text, problem) in &models {
+        write(name, text);
+        fails_with(
+            &photopose(&["estimate", "--model", &p(name), "--sbs", &frame]),
+            &[name, problem],
+        );
+    }
+    let good_model = data("examples/rocket.model").display().to_string();
+    write("corrupt.png", "\u{89}PNG\r\n\u{1a}\n garbage");
+    write("empty.jpg", "");
+    image::RgbImage::new(2 * 1280, 700).save(p("wrong-size.png")).unwrap();
+    for (name, problem) in [
+        ("corrupt.png", "cannot read image"),
+        ("empty.jpg", "cannot read image"),
+        (
+            "wrong-size.png",
+            "image size 1280x700 per eye matches no ZED resolution",
+        ),
+    ] {
+        fails_with(
+            &photopose(&[
+                "estimate",
+                "--model",
+                &good_model,
+                "--sbs",
+                &p(name),
+                "--generations",
+                "10",
+            ]),
+            &[name, problem],
+        );
+    }
+    assert!(!Path::new(&p("x.model")).exists(), "nothing written on error");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -12,6 +12,7 @@ use std::sync::{Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use photopose::client::PoseClient;
 use photopose::ipc::{send_pose, Ipc, PoseSubscriber};
 use photopose::messages::{monotonic_ns, status, PoseMsg, POSES_SERVICE, TRUTH_SERVICE};
 use photopose::stats::Samples;
@@ -34,6 +35,15 @@ impl Running {
             .find_map(|l| l.strip_prefix("VmRSS:"))
             .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
             .unwrap_or(0)
+    }
+}
+
+impl Running {
+    /// Asks the process to stop (SIGTERM) and waits for it: a clean exit.
+    fn terminate(mut self) {
+        // SAFETY: kill(2) on our own child's pid.
+        unsafe { libc::kill(self.0.id() as libc::pid_t, libc::SIGTERM) };
+        let _ = self.0.wait();
     }
 }
 
@@ -88,6 +98,8 @@ struct Watcher {
     truth: PoseSubscriber,
     got: Vec<(PoseMsg, Instant)>,
     truths: HashMap<u64, PoseMsg>,
+    /// When each truth (a frame of the camera) arrived.
+    truth_times: Vec<Instant>,
 }
 
 impl Watcher {
@@ -101,6 +113,7 @@ impl Watcher {
             truth,
             got: Vec::new(),
             truths: HashMap::new(),
+            truth_times: Vec::new(),
         }
     }
 
@@ -126,12 +139,18 @@ impl Watcher {
         false
     }
 
+    /// When the first truth (camera frame) after `t` arrived, if one did.
+    fn truths_since(&self, t: Instant) -> Option<Instant> {
+        self.truth_times.iter().copied().find(|&a| a >= t)
+    }
+
     fn drain(&mut self) {
         while let Some(s) = self.poses.receive().expect("receive pose") {
             self.got.push((*s.payload(), Instant::now()));
         }
         while let Some(s) = self.truth.receive().expect("receive truth") {
             self.truths.insert(s.payload().frame_id, *s.payload());
+            self.truth_times.push(Instant::now());
         }
     }
 }
@@ -435,6 +454,8 @@ fn compare_transport_times_both_transports_on_the_same_frames() {
     assert!(ratio > 1.0, "ratio {ratio}");
 }
 
+/// A subscriber that takes one frame a second, and one killed while subscribed, neither
+/// stall the pipeline nor grow the memory of capture or estimator.
 #[test]
 fn a_slow_subscriber_never_grows_memory() {
     let _serial = serial();
@@ -443,16 +464,30 @@ fn a_slow_subscriber_never_grows_memory() {
     let frames = ipc.frame_subscriber().expect("frames");
     let capture = spawn(&["capture"]);
     let estimator = estimator();
+    // And one that vanishes: a subscriber to frames and poses killed with SIGKILL.
+    let mut vanishing = Some(spawn(&["latency", "--seconds", "60"]));
+    let mut w = Watcher::new("photopose-test-slow-poses");
     let mut rss = Vec::new();
+    let mut poses_per_second = Vec::new();
     for second in 0..8 {
-        std::thread::sleep(Duration::from_secs(1));
+        let before = w.got.len();
+        w.collect(Duration::from_secs(1));
+        poses_per_second.push(w.got.len() - before);
         if let Some(frame) = frames.receive().expect("receive") {
             assert!(frame.payload().len() >= 1280 * 720 * 6);
+        }
+        if second == 2 {
+            drop(vanishing.take());
         }
         if second >= 2 {
             rss.push((capture.rss_kb(), estimator.rss_kb()));
         }
     }
+    println!("poses per second: {poses_per_second:?}");
+    assert!(
+        poses_per_second[3..].iter().all(|&n| n > 0),
+        "the pipeline stalled behind a slow or vanished subscriber: {poses_per_second:?}"
+    );
     let (first, last) = (rss[0], *rss.last().unwrap());
     println!(
         "resident memory, first → last: capture {} → {} kB, estimator {} → {} kB",
@@ -796,4 +831,243 @@ fn python_client_reads_the_pose_layout() {
         "pose_client.py printed 30 truth poses and 6 test poses, all bit-identical to Rust's; first: {}",
         truth_lines[0]
     );
+}
+
+/// iceoryx2's files: shared memory (`/dev/shm/iox2_*`) and everything under its root
+/// directory (`/tmp/iceoryx2`: service and node records, event sockets), with their modes.
+/// The machine-wide management segment every iceoryx2 process shares is left out.
+fn ipc_entries() -> Vec<(PathBuf, u32)> {
+    use std::os::unix::fs::PermissionsExt;
+    fn walk(dir: &Path, out: &mut Vec<(PathBuf, u32)>, keep: &dyn Fn(&str) -> bool) {
+        let Ok(entries) = std::fs::read_dir(dir) else { return };
+        for e in entries.flatten() {
+            let (path, name) = (e.path(), e.file_name().to_string_lossy().to_string());
+            let Ok(meta) = std::fs::symlink_metadata(&path) else {
+                continue;
+            };
+            if meta.is_dir() {
+                walk(&path, out, &|_| true);
+            } else if keep(&name) && !name.ends_with(".global_mgmt") {
+                out.push((path, meta.permissions().mode() & 0o777));
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(Path::new("/dev/shm"), &mut out, &|n| n.starts_with("iox2_"));
+    walk(Path::new("/tmp/iceoryx2"), &mut out, &|_| true);
+    out.sort();
+    out
+}
+
+/// SIGKILL of the estimator, the camera or both at random moments, 20 times, each
+/// restarted at once: poses resume within 2 s every time, the controller's client flags
+/// the newest pose stale while no pose comes, and iceoryx2's files do not accumulate
+/// (the restarted processes clean up what the killed ones left).
+#[test]
+fn twenty_random_kills_and_restarts() {
+    use rand::{Rng, SeedableRng};
+    let _serial = serial();
+    let before = ipc_entries();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(2023);
+    let mut w = Watcher::new("photopose-test-kill");
+    let deadline = Duration::from_millis(100);
+    let mut client = PoseClient::connect("photopose-test-kill-client", deadline).expect("client");
+    let mut capture = Some(spawn(&["capture"]));
+    let mut estimator_p = Some(estimator());
+    assert!(w.until_pose(Duration::from_secs(10)), "no first pose");
+    let (mut resumed, mut counts) = (Vec::new(), Vec::new());
+    for cycle in 0..20 {
+        // A random moment: sometimes still acquiring, sometimes long tracking.
+        w.collect(Duration::from_millis(rng.random_range(50..1500)));
+        let victim = ["estimator", "capture", "both"][rng.random_range(0..3)];
+        if victim != "capture" {
+            drop(estimator_p.take()); // SIGKILL
+        }
+        if victim != "estimator" {
+            drop(capture.take());
+        }
+        w.collect(deadline + Duration::from_millis(rng.random_range(50..300)));
+        client.poll().expect("poll");
+        let latest = client.latest().expect("a pose before the kill");
+        assert!(
+            latest.stale && !latest.usable(),
+            "cycle {cycle} ({victim} killed): newest pose not stale: {latest:?}"
+        );
+        let restarted = Instant::now();
+        capture.get_or_insert_with(|| spawn(&["capture"]));
+        estimator_p.get_or_insert_with(estimator);
+        assert!(
+            w.until_pose(Duration::from_secs(6)),
+            "cycle {cycle}: no pose within 6 s after restarting the {victim}"
+        );
+        let took = restarted.elapsed();
+        // A restarted synthetic camera first loads its scene and renders the wall; the
+        // estimator's deadline runs from the camera's first frame.
+        let first_pose = w.got.last().expect("a pose").1;
+        let since_frames = match victim {
+            "estimator" => took,
+            _ => {
+                let first_frame = w.truths_since(restarted).expect("a frame of the new camera");
+                first_pose.saturating_duration_since(first_frame)
+            }
+        };
+        assert!(
+            since_frames < Duration::from_secs(2),
+            "cycle {cycle}: poses resumed {since_frames:?} after the {victim} restart ({took:?} after the restart)"
+        );
+        // The client sees a fresh pose again.
+        let fresh_by = Instant::now() + Duration::from_secs(3);
+        while client.latest().is_none_or(|l| l.stale) && Instant::now() < fresh_by {
+            client.poll().expect("poll");
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        assert!(
+            client.latest().is_some_and(|l| !l.stale),
+            "cycle {cycle}: no fresh pose"
+        );
+        resumed.push((victim, took, since_frames));
+        counts.push(ipc_entries().len());
+    }
+    // A clean stop of the last pair and of the test's own nodes.
+    for p in [capture.take(), estimator_p.take()].into_iter().flatten() {
+        p.terminate();
+    }
+    drop((w, client));
+    let after = ipc_entries();
+    let ms = |d: &Duration| format!("{:.0}", d.as_secs_f64() * 1e3);
+    let lines: Vec<String> = resumed
+        .iter()
+        .map(|(v, t, f)| format!("{v} {} ({} after the first frame)", ms(t), ms(f)))
+        .collect();
+    println!("poses resumed after restart (ms): {}", lines.join(", "));
+    println!(
+        "iceoryx2 entries: {} before, {counts:?} while running after each restart, {} after",
+        before.len(),
+        after.len()
+    );
+    assert!(
+        counts[15..].iter().max() <= counts[..5].iter().max(),
+        "entries accumulate: {counts:?}"
+    );
+    let gone: Vec<_> = after.iter().filter(|e| !before.contains(e)).collect();
+    assert_eq!(after.len(), before.len(), "entries left behind: {gone:?}");
+}
+
+/// Every file iceoryx2 makes for photopose (shared memory, records, sockets) is readable
+/// and writable by its user only.
+#[test]
+fn shared_memory_is_private_to_the_user() {
+    let _serial = serial();
+    let mut w = Watcher::new("photopose-test-access");
+    let _capture = spawn(&["capture"]);
+    let _estimator = estimator();
+    assert!(w.until_pose(Duration::from_secs(10)), "no pose");
+    let entries = ipc_entries();
+    let shm = entries.iter().filter(|(p, _)| p.starts_with("/dev/shm")).count();
+    println!("{} entries ({shm} in /dev/shm)", entries.len());
+    assert!(shm >= 6, "frames, poses, truth and their events: {entries:?}");
+    let open: Vec<_> = entries.iter().filter(|(_, mode)| mode & 0o077 != 0).collect();
+    assert!(open.is_empty(), "accessible to group or others: {open:?}");
+}
+
+/// Frames whose header disagrees with the payload reach the estimator over shared
+/// memory: it skips and counts each, keeps running, and tracks the next good frame.
+#[test]
+fn the_estimator_skips_frames_whose_header_disagrees_with_the_payload() {
+    use photopose::ipc::wake_up;
+    use photopose::messages::{pixel_format, FrameHeader, FRAMES_SERVICE};
+    let _serial = serial();
+    let frame = image::open(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/examples/rocket-frame.jpg"))
+        .expect("example frame")
+        .to_rgb8();
+    let (w, h) = (frame.width() / 2, frame.height());
+    let stride = 2 * w * 3;
+    let good = FrameHeader {
+        width: w,
+        height: h,
+        pixel_format: pixel_format::RGB8,
+        row_stride: stride,
+        ..Default::default()
+    };
+    let len = (stride * h) as usize;
+    let bad = [
+        (
+            FrameHeader {
+                pixel_format: 7,
+                ..good
+            },
+            len,
+        ),
+        (FrameHeader { width: 0, ..good }, len),
+        (
+            FrameHeader {
+                row_stride: stride - 3,
+                ..good
+            },
+            len,
+        ),
+        (good, len - 1),
+        (FrameHeader { height: h + 1, ..good }, len),
+    ];
+    let ipc = Ipc::new("photopose-test-bad-frames").expect("node");
+    let publisher = ipc.frame_publisher(len).expect("frame publisher");
+    let waker = ipc.waker(FRAMES_SERVICE).expect("waker");
+    let mut w = Watcher::new("photopose-test-bad-frames-poses");
+    let process = photopose()
+        .args(["estimator", "--model", &model(), "--seconds", "8"])
+        .env("RUST_LOG", "photopose=info")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("estimator");
+    let mut process = Running(process);
+    std::thread::sleep(Duration::from_millis(800));
+    let send = |id: u64, header: FrameHeader, len: usize| {
+        let mut sample = publisher.loan_slice(len).expect("loan");
+        let n = len.min(frame.as_raw().len());
+        sample.payload_mut()[..n].copy_from_slice(&frame.as_raw()[..n]);
+        *sample.user_header_mut() = FrameHeader {
+            frame_id: id,
+            capture_time_ns: monotonic_ns(),
+            publish_time_ns: monotonic_ns(),
+            ..header
+        };
+        sample.send().expect("send");
+        wake_up(&waker);
+        // One at a time: the estimator always takes the newest frame.
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    for (i, (header, len)) in bad.into_iter().enumerate() {
+        send(i as u64, header, len);
+    }
+    assert!(
+        w.got.is_empty() && !w.until_pose(Duration::from_millis(100)),
+        "a pose for a bad frame"
+    );
+    send(10, good, len);
+    assert!(
+        w.until_pose(Duration::from_secs(5)),
+        "no pose for the good frame after the bad ones"
+    );
+    assert_eq!(w.got[0].0.frame_id, 10);
+    let mut err = String::new();
+    process.0.wait().expect("estimator exits after --seconds");
+    process
+        .0
+        .stderr
+        .take()
+        .expect("stderr")
+        .read_to_string(&mut err)
+        .unwrap();
+    assert!(
+        err.contains("estimator: 1 frames processed, 0 dropped, skipped: 1 unknown pixel format, 1 empty image, 1 short stride, 2 wrong length"),
+        "{err}"
+    );
+    for reason in [
+        "unknown pixel format code 7",
+        "empty image (0x720 per eye)",
+        "row stride 7677 is shorter",
+    ] {
+        assert!(err.contains(reason), "{reason:?} not logged: {err}");
+    }
 }

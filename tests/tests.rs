@@ -4,6 +4,7 @@
 mod accuracy;
 mod cli;
 mod detect;
+mod robustness;
 mod scenes;
 mod tracking;
 mod zed;

@@ -4,17 +4,18 @@
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Translation3, Vector3};
+use photopose::camera::StereoRig;
 use photopose::lookup::SbsBytes;
 use photopose::messages::status;
 use photopose::messages::PixelFormat;
 use photopose::render::{self, Background, Card, Scene};
-use photopose::tracking::StreamTracker;
+use photopose::tracking::{Estimate, StreamTracker};
 
 use crate::scenes::{self, photo, rotation, PHOTOS};
 
-/// Position error (mm) of the tracked model origin on every frame of a 150 mm/s pass.
-#[test]
-fn tracks_a_card_moving_at_150_mm_per_s() {
+/// The rocket card of scene `rocket-650-30` in front of the collage wall, with the
+/// rendered scene's configuration, model and HD rig.
+fn rocket_scene() -> (scenes::Rendered, StereoRig, Scene) {
     let spec = scenes::all()
         .into_iter()
         .find(|s| s.name == "rocket-650-30")
@@ -28,7 +29,7 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
     let full = photo(spec.photo);
     let [x, y, w, h] = spec.bbox;
     let background: Vec<_> = PHOTOS.iter().filter(|p| **p != spec.photo).map(|p| photo(p)).collect();
-    let mut scene = Scene {
+    let scene = Scene {
         card: Card {
             texture: image::imageops::crop_imm(&full, x as u32, y as u32, w as u32, h as u32).to_image(),
             hand_from_model: r.hand_from_model,
@@ -40,6 +41,34 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
         occluder: None,
         seed: 3,
     };
+    (r, rig, scene)
+}
+
+/// Renders `scene` and runs one tracker step on it: the estimate and the step's time, ms
+/// (rendering excluded).
+fn step(tracker: &mut StreamTracker, rig: &StereoRig, r: &scenes::Rendered, scene: &Scene) -> (Estimate, f64) {
+    let sbs = render::render(rig, &r.config.left_from_hand, scene);
+    let frame = SbsBytes {
+        bytes: sbs.as_raw(),
+        width: rig.width as usize,
+        height: rig.height as usize,
+        row_stride: sbs.width() as usize * 3,
+        format: PixelFormat::Rgb8,
+    };
+    let start = Instant::now();
+    tracker.prepare(&frame).expect("HD frame");
+    let est = tracker.step().expect("a prepared frame");
+    (est, start.elapsed().as_secs_f64() * 1e3)
+}
+
+/// Position error (mm) of the tracked model origin on every frame of a 150 mm/s pass.
+#[test]
+fn tracks_a_card_moving_at_150_mm_per_s() {
+    let (r, rig, mut scene) = rocket_scene();
+    let spec = scenes::all()
+        .into_iter()
+        .find(|s| s.name == "rocket-650-30")
+        .expect("scene");
     let (fps, speed) = (60.0, 150.0);
     let frames = 40;
     let mut tracker = StreamTracker::new(r.model.clone(), r.config.clone());
@@ -53,18 +82,8 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
             rotation([spec.rotation_deg[0], 0.0, 20.0 * t]),
         );
         scene.card.hand_from_model = r.config.left_from_hand.inverse() * left_from_model;
-        let sbs = render::render(&rig, &r.config.left_from_hand, &scene);
-        let frame = SbsBytes {
-            bytes: sbs.as_raw(),
-            width: rig.width as usize,
-            height: rig.height as usize,
-            row_stride: sbs.width() as usize * 3,
-            format: PixelFormat::Rgb8,
-        };
-        let start = Instant::now();
-        tracker.prepare(&frame).expect("HD frame");
-        let est = tracker.step().expect("a prepared frame");
-        times.push(start.elapsed().as_secs_f64() * 1e3);
+        let (est, ms) = step(&mut tracker, &rig, &r, &scene);
+        times.push(ms);
         let err = (est.best.position - scene.card.hand_from_model.translation.vector).norm();
         if i == 0 {
             assert!(err < 10.0, "acquisition ends {err:.1} mm off");
@@ -91,4 +110,38 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
         errors.len()
     );
     assert!(p95 <= 10.0, "p95 tracking error {p95:.1} mm");
+}
+
+/// The card vanishes: every pose stays sound (finite, unit quaternion), and a pose whose
+/// `F` is below `[tracking] lost_fitness` is `lost` at once, never `tracking`.
+#[test]
+fn a_pose_below_the_fitness_floor_is_lost_never_tracking() {
+    let (r, rig, mut scene) = rocket_scene();
+    let settings = r.config.tracking.clone();
+    let mut tracker = StreamTracker::new(r.model.clone(), r.config.clone());
+    let mut statuses = Vec::new();
+    for i in 0..12 {
+        if i == 3 {
+            // Out of both cameras' view: only the wall is left.
+            scene.card.hand_from_model = Isometry3::translation(5000.0, 0.0, 650.0);
+        }
+        let (est, _) = step(&mut tracker, &rig, &r, &scene);
+        let pose = tracker.pose_msg(&est, i, 0);
+        assert!(pose.is_sound(), "frame {i}: {pose:?}");
+        let f = pose.fitness;
+        if f < settings.lost_fitness {
+            assert_eq!(pose.status, status::LOST, "frame {i}: F {f:.3} below the floor");
+        }
+        if f < settings.min_fitness {
+            assert_ne!(pose.status, status::TRACKING, "frame {i}: F {f:.3}");
+        }
+        statuses.push((pose.status, f));
+    }
+    println!("status and F per frame: {statuses:?}");
+    assert!(
+        statuses[..3].iter().all(|(s, _)| *s == status::TRACKING),
+        "{statuses:?}"
+    );
+    // Long before `lost_after_frames` (30) searching frames, the floor already says lost.
+    assert!(statuses[3..].iter().any(|(s, _)| *s == status::LOST), "{statuses:?}");
 }

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 
 use crate::config::Config;
 use crate::estimate::{self, Prepared, Report};
@@ -56,7 +56,11 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
     let seed = args.seed.unwrap_or(config.ga.seed);
     let bar = super::progress_bar(generations as u64, "generations");
     let start = Instant::now();
-    let prepared = Prepared::new(&model, &images, &config)?;
+    let frame = match (&args.sbs, &args.left) {
+        (Some(f), _) | (None, Some(f)) => f.display().to_string(),
+        (None, None) => String::new(),
+    };
+    let prepared = Prepared::new(&model, &images, &config).with_context(|| format!("frame {frame}"))?;
     let outcome = estimate::search(&prepared, &config, generations, seed, &mut |g| {
         bar.set_position(g as u64)
     });

@@ -10,10 +10,12 @@ use anyhow::{anyhow, Result};
 use crate::config::Config;
 use crate::ipc::{send_pose, wake_up, Ipc};
 use crate::lookup::SbsBytes;
-use crate::messages::{monotonic_ns, FrameHeader, PixelFormat, FRAMES_SERVICE, POSES_SERVICE};
+use crate::messages::{monotonic_ns, validate_frame, FrameHeader, FRAMES_SERVICE, POSES_SERVICE};
 use crate::model::PhotoModel;
 use crate::realtime::{self, RealtimeSettings};
 use crate::tracking::StreamTracker;
+
+use super::skips::FrameSkips;
 
 /// Track the model in the frame stream.
 #[derive(clap::Args, Debug)]
@@ -49,6 +51,7 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
     let start = Instant::now();
     let mut last_id: Option<u64> = None;
     let (mut processed, mut dropped) = (0u64, 0u64);
+    let mut skipped = FrameSkips::default();
     let mut report = Instant::now();
     // Woken by the camera; the timeout only bounds how late a stop request is noticed.
     while ipc.wait_for(&wake, Duration::from_millis(50)) {
@@ -62,20 +65,20 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
         }
         let Some(sample) = newest else { continue };
         let header: FrameHeader = *sample.user_header();
+        // A header that disagrees with its payload must not steer reads of it.
+        let format = match validate_frame(&header, sample.payload().len()) {
+            Ok(format) => format,
+            Err(fault) => {
+                skipped.fault(header.frame_id, &fault);
+                continue;
+            }
+        };
         match last_id {
             Some(last) if header.frame_id > last => dropped += header.frame_id - last - 1,
             Some(_) => tracing::info!("estimator: frame ids restarted at {}", header.frame_id),
             None => {}
         }
         last_id = Some(header.frame_id);
-        let Some(format) = PixelFormat::from_code(header.pixel_format) else {
-            tracing::warn!(
-                "estimator: frame {} skipped: unknown pixel format {} (expected RGB8 or YUYV)",
-                header.frame_id,
-                header.pixel_format
-            );
-            continue;
-        };
         let frame = SbsBytes {
             bytes: sample.payload(),
             width: header.width as usize,
@@ -84,7 +87,7 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
             format,
         };
         if let Err(e) = tracker.prepare(&frame) {
-            tracing::warn!("estimator: frame {} skipped: {e}", header.frame_id);
+            skipped.unusable(header.frame_id, &e);
             continue;
         }
         drop(sample);
@@ -104,6 +107,9 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
             report = Instant::now();
         }
     }
-    tracing::info!("estimator: {processed} frames processed, {dropped} dropped");
+    tracing::info!(
+        "estimator: {processed} frames processed, {dropped} dropped, skipped: {}",
+        skipped.summary()
+    );
     Ok(())
 }

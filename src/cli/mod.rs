@@ -9,6 +9,7 @@ pub mod estimator;
 pub mod latency;
 pub mod model;
 pub mod render;
+pub mod skips;
 
 use std::io::IsTerminal;
 
