@@ -174,10 +174,20 @@ struct Report {
 }
 
 impl Report {
+    fn acquisition_line(&self) -> String {
+        match self.acquisitions {
+            0 => "no acquisition in this window".into(),
+            n => format!(
+                "{n} acquisitions (up to {:.0} ms each, {} frames skipped meanwhile; left out below)",
+                self.acquisition_max_ms, self.skipped_while_acquiring
+            ),
+        }
+    }
+
     fn text(&self) -> String {
         format!(
             "{:.1} s: {} frames, {} poses, {} frames dropped while tracking\n\
-             {} acquisitions (up to {:.0} ms each, {} frames skipped meanwhile; left out below)\n\
+             {}\n\
              frame transport (publish → receive):   {}\n\
              estimation (capture → pose published):  {}\n\
              end to end (capture → pose received):   {}\n\
@@ -186,9 +196,7 @@ impl Report {
             self.frames,
             self.poses,
             self.dropped_frames,
-            self.acquisitions,
-            self.acquisition_max_ms,
-            self.skipped_while_acquiring,
+            self.acquisition_line(),
             self.transport_us.line("µs"),
             self.estimation_ms.line("ms"),
             self.end_to_end_ms.line("ms"),
