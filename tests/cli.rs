@@ -1,7 +1,7 @@
 //! The `photopose` binary: the model → estimate pipeline on a rendered frame, the exact
 //! JSON contract, reproducibility, and one-line errors on bad input.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use crate::scenes::data;
@@ -18,15 +18,7 @@ fn repo(rel: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel).display().to_string()
 }
 
-/// A fresh scratch directory under the target dir, removed by the caller's `cleanup`.
-pub fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("target/test-scratch")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+pub use crate::common::scratch;
 
 /// `photopose model` of the coffee cup with a given configuration file.
 fn model_with_config(photo: &str, output: &str, config: &str) -> Output {

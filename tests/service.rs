@@ -4,6 +4,8 @@
 //! the Python client `tools/pose_client.py`. They share the service names, so they run
 //! one at a time ([`serial`]).
 
+mod common;
+
 use std::collections::HashMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -12,6 +14,7 @@ use std::sync::{Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use common::scratch;
 use photopose::client::PoseClient;
 use photopose::ipc::{send_pose, Ipc, PoseSubscriber};
 use photopose::messages::{monotonic_ns, status, PoseMsg, POSES_SERVICE, TRUTH_SERVICE};
@@ -29,10 +32,15 @@ struct Running(Child);
 impl Running {
     /// Resident memory of the process, kB.
     fn rss_kb(&self) -> u64 {
+        self.status_kb("VmRSS")
+    }
+
+    /// A `kB` field of `/proc/PID/status` (0 when absent).
+    fn status_kb(&self, field: &str) -> u64 {
         let status = std::fs::read_to_string(format!("/proc/{}/status", self.0.id())).unwrap_or_default();
         status
             .lines()
-            .find_map(|l| l.strip_prefix("VmRSS:"))
+            .find_map(|l| l.strip_prefix(field)?.strip_prefix(':'))
             .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
             .unwrap_or(0)
     }
@@ -79,16 +87,6 @@ fn model() -> String {
 
 fn estimator() -> Running {
     spawn(&["estimator", "--model", &model()])
-}
-
-/// A fresh scratch directory under the target dir.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("target/test-scratch")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// A test's view of the pose streams: every pose and truth, with the time it arrived.
@@ -364,12 +362,7 @@ fn the_estimator_applies_its_realtime_options() {
     for t in workers.iter().copied().chain([main]) {
         assert_eq!((t.policy, t.rt_priority), expected, "{} scheduling", t.name);
     }
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
-    let locked_kb: u64 = status
-        .lines()
-        .find_map(|l| l.strip_prefix("VmLck:"))
-        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
-        .unwrap_or(0);
+    let locked_kb = estimator.status_kb("VmLck");
     drop(estimator);
     let log = std::fs::read_to_string(&log).unwrap();
     let summary = log.lines().find(|l| l.contains("realtime:")).unwrap_or("").to_string();

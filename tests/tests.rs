@@ -3,6 +3,7 @@
 
 mod accuracy;
 mod cli;
+mod common;
 mod detect;
 mod robustness;
 mod scenes;

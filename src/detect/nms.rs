@@ -24,43 +24,27 @@ mod tests {
     use super::*;
     use crate::detect::Rect;
 
+    fn rect(x0: f32, y0: f32, x1: f32, y1: f32) -> Rect {
+        Rect { x0, y0, x1, y1 }
+    }
+
     fn cand(class: usize, score: f32, x0: f32, y0: f32, x1: f32, y1: f32) -> Detection {
         Detection {
             class,
             score,
-            rect: Rect { x0, y0, x1, y1 },
+            rect: rect(x0, y0, x1, y1),
         }
     }
 
     #[test]
     fn iou_of_known_boxes() {
-        let a = Rect {
-            x0: 0.0,
-            y0: 0.0,
-            x1: 10.0,
-            y1: 10.0,
-        };
-        let b = Rect {
-            x0: 5.0,
-            y0: 0.0,
-            x1: 15.0,
-            y1: 10.0,
-        };
+        let a = rect(0.0, 0.0, 10.0, 10.0);
+        let b = rect(5.0, 0.0, 15.0, 10.0);
         assert!((a.iou(&b) - 50.0 / 150.0).abs() < 1e-6);
         assert_eq!(a.iou(&a), 1.0);
-        let far = Rect {
-            x0: 20.0,
-            y0: 20.0,
-            x1: 30.0,
-            y1: 30.0,
-        };
+        let far = rect(20.0, 20.0, 30.0, 30.0);
         assert_eq!(a.iou(&far), 0.0);
-        let empty = Rect {
-            x0: 3.0,
-            y0: 3.0,
-            x1: 3.0,
-            y1: 3.0,
-        };
+        let empty = rect(3.0, 3.0, 3.0, 3.0);
         assert_eq!(empty.iou(&empty), 0.0);
     }
 

@@ -367,6 +367,21 @@ mod tests {
         }
     }
 
+    /// Each pixel's texel encodes its column (mod 180) and row (mod 256).
+    fn coordinate_plane() -> ColorPlane {
+        ColorPlane {
+            width: W,
+            height: H,
+            px: (0..W * H)
+                .map(|i| PixelColor {
+                    code: (i % W % 180) as u8,
+                    sat: (i / W % 256) as u8,
+                    hue: 0,
+                })
+                .collect(),
+        }
+    }
+
     /// Random model points (chromatic first, then achromatic) and outer points.
     fn points(rng: &mut StdRng) -> PointSet {
         let (n, chromatic) = (700, 500);
@@ -564,16 +579,8 @@ mod tests {
 
     #[test]
     fn points_land_on_the_pixel_the_camera_model_projects_to() {
-        // Each pixel's texel encodes its column (mod 180) and row (mod 256).
         let mut rng = StdRng::seed_from_u64(6);
-        let coords = plane(
-            |i, _| PixelColor {
-                code: (i % W % 180) as u8,
-                sat: (i / W % 256) as u8,
-                hue: 0,
-            },
-            &mut rng,
-        );
+        let coords = coordinate_plane();
         let img = lookup(&coords);
         let cam = camera();
         let mut chunk = Chunk::new();
@@ -617,14 +624,7 @@ mod tests {
     #[test]
     fn a_region_reads_like_the_whole_image_inside_it_and_outside_beyond() {
         let mut rng = StdRng::seed_from_u64(7);
-        let coords = plane(
-            |i, _| PixelColor {
-                code: (i % W % 180) as u8,
-                sat: (i / W % 256) as u8,
-                hue: 0,
-            },
-            &mut rng,
-        );
+        let coords = coordinate_plane();
         let full = lookup(&coords);
         let (cols, rows) = (200..500, 100..250);
         let mut region = LookupImage {
