@@ -151,26 +151,26 @@ fn lock_memory() -> bool {
     false
 }
 
-/// The calling thread's cores and scheduling policy and priority, as the kernel sees them.
-pub fn current_thread() -> io::Result<(Vec<usize>, i32, i32)> {
-    // SAFETY: out-parameters owned here; pid 0 and pthread_self are the calling thread.
-    unsafe {
-        let mut set: libc::cpu_set_t = std::mem::zeroed();
-        if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
-            return Err(io::Error::last_os_error());
-        }
-        let cpus = (0..MAX_CPUS).filter(|&c| libc::CPU_ISSET(c, &set)).collect();
-        let (mut policy, mut param) = (0, std::mem::zeroed::<libc::sched_param>());
-        match libc::pthread_getschedparam(libc::pthread_self(), &mut policy, &mut param) {
-            0 => Ok((cpus, policy, param.sched_priority)),
-            code => Err(io::Error::from_raw_os_error(code)),
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The calling thread's cores and scheduling policy and priority, as the kernel sees them.
+    fn current_thread() -> io::Result<(Vec<usize>, i32, i32)> {
+        // SAFETY: out-parameters owned here; pid 0 and pthread_self are the calling thread.
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
+                return Err(io::Error::last_os_error());
+            }
+            let cpus = (0..MAX_CPUS).filter(|&c| libc::CPU_ISSET(c, &set)).collect();
+            let (mut policy, mut param) = (0, std::mem::zeroed::<libc::sched_param>());
+            match libc::pthread_getschedparam(libc::pthread_self(), &mut policy, &mut param) {
+                0 => Ok((cpus, policy, param.sched_priority)),
+                code => Err(io::Error::from_raw_os_error(code)),
+            }
+        }
+    }
 
     /// Runs `f` on a fresh thread, so the test runner's threads keep their settings.
     fn on_thread<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
