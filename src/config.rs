@@ -229,6 +229,10 @@ pub struct TrackingSettings {
     /// The floor: a pose whose `F` is below this is published as `lost`, never
     /// `tracking` or `searching` (0 ≤ `lost_fitness` ≤ `min_fitness`).
     pub lost_fitness: f64,
+    /// Below this share of the best `F` since the object was acquired the object counts
+    /// as not tracked either: a model that slipped onto part of its target scores well
+    /// above `min_fitness` but far below what the whole target gave.
+    pub min_fitness_share: f64,
     /// Share of each generation replaced by view-prior immigrants while searching.
     pub immigrants: f64,
     /// Frames of searching before the object is `lost` and acquired afresh.
@@ -247,6 +251,7 @@ impl Default for TrackingSettings {
             sigma: 0.003,
             min_fitness: 1.0,
             lost_fitness: 0.5,
+            min_fitness_share: 0.85,
             immigrants: 0.2,
             lost_after_frames: 30,
             acquire_generations: 300,
@@ -597,6 +602,13 @@ impl Config {
                     "{} must lie in [0, min_fitness = {}]",
                     tracking.lost_fitness, tracking.min_fitness
                 ),
+            ));
+        }
+        if !(0.0..=1.0).contains(&tracking.min_fitness_share) {
+            return Err(invalid(
+                "tracking",
+                "min_fitness_share",
+                format!("{} must lie in [0, 1]", tracking.min_fitness_share),
             ));
         }
         if !(0.0..1.0).contains(&tracking.immigrants) {

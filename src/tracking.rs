@@ -15,7 +15,7 @@ use crate::config::{Config, GaSettings, Mode, RobustSettings, TrackingSettings};
 use crate::estimate::{scorer_for, Prepared};
 use crate::fitness::{Fitness, PointSet, Scorer};
 use crate::frame::Region;
-use crate::ga::robust::{mutate, Population};
+use crate::ga::robust::{mutate, mutate_from_edge, Population};
 use crate::ga::{Bounds, Genes, Problem, GENES};
 use crate::lookup::{LevelLookup, SbsBytes};
 use crate::messages::{status, PoseMsg};
@@ -34,16 +34,27 @@ pub struct Estimate {
     pub status: u32,
 }
 
+/// Share of each generation's children also rescaled about one of their edges
+/// ([`mutate_from_edge`]), and the spread of that rescaling (log of the factor): a model
+/// that shrank onto part of a target that moved further than predicted grows back.
+const EDGE_MOVES: f64 = 0.25;
+const EDGE_STEP: f64 = 0.03;
+
 /// A GA population that lives from frame to frame.
 pub struct Tracker {
     settings: TrackingSettings,
+    /// The photo box `[L_P, B_P]`, pixels.
+    box_px: [f64; 2],
     ga: GaSettings,
     robust: RobustSettings,
     pop: Population,
     order: Vec<usize>,
     rng: StdRng,
-    /// Frames in a row below `min_fitness`.
+    /// Frames in a row not tracked (below `min_fitness`, or below `min_fitness_share` of
+    /// `best_f`).
     searching: usize,
+    /// The best `F` since the last acquisition.
+    best_f: f64,
     /// Best genes of the last frame and their change per frame (constant velocity).
     last_best: Option<Genes>,
     velocity: Genes,
@@ -51,16 +62,19 @@ pub struct Tracker {
 }
 
 impl Tracker {
-    pub fn new(config: &Config, seed: u64) -> Self {
+    /// A tracker of a model whose photo box is `box_px` (`[L_P, B_P]`).
+    pub fn new(config: &Config, box_px: [f64; 2], seed: u64) -> Self {
         let n = config.tracking.population;
         Self {
             settings: config.tracking.clone(),
+            box_px,
             ga: config.ga.clone(),
             robust: config.robust.clone(),
             pop: Population::new(Vec::with_capacity(n)),
             order: Vec::with_capacity(n),
             rng: StdRng::seed_from_u64(seed),
             searching: 0,
+            best_f: 0.0,
             last_best: None,
             velocity: [0.0; GENES],
             frames: 0,
@@ -85,7 +99,8 @@ impl Tracker {
     /// Processes one frame.
     pub fn step(&mut self, problem: &Problem) -> Estimate {
         self.frames += 1;
-        let generations = if self.needs_acquisition() {
+        let acquiring = self.needs_acquisition();
+        let generations = if acquiring {
             self.acquire(problem);
             self.settings.acquire_generations
         } else {
@@ -102,10 +117,23 @@ impl Tracker {
             self.velocity = std::array::from_fn(|i| 0.5 * (best[i] - last[i]));
         }
         self.last_best = Some(best);
-        let tracked = fitness.f >= self.settings.min_fitness;
+        let status = self.judge(fitness.f, acquiring);
+        Estimate {
+            best: problem.bounds.decode(&best),
+            fitness,
+            generations: generations as u32,
+            status,
+        }
+    }
+
+    /// The status of a frame whose best individual scored `f` (`acquired`: by a fresh
+    /// acquisition), counting the frames in a row that were not tracked.
+    fn judge(&mut self, f: f64, acquired: bool) -> u32 {
+        self.best_f = if acquired { f } else { self.best_f.max(f) };
+        let tracked = f >= self.settings.min_fitness && f >= self.settings.min_fitness_share * self.best_f;
         self.searching = if tracked { 0 } else { self.searching + 1 };
         // Below the floor (or NaN) the pose is never called tracked.
-        let status = if fitness.f.is_nan() || fitness.f < self.settings.lost_fitness {
+        if f.is_nan() || f < self.settings.lost_fitness {
             status::LOST
         } else if tracked {
             status::TRACKING
@@ -113,12 +141,6 @@ impl Tracker {
             status::LOST
         } else {
             status::SEARCHING
-        };
-        Estimate {
-            best: problem.bounds.decode(&best),
-            fitness,
-            generations: generations as u32,
-            status,
         }
     }
 
@@ -169,6 +191,11 @@ impl Tracker {
             self.pop.sort(&mut self.order);
             self.pop
                 .breed(problem, keep, &self.ga, sigma, immigrants, &mut self.rng);
+            for g in &mut self.pop.genes[keep..] {
+                if self.rng.random::<f64>() < EDGE_MOVES {
+                    mutate_from_edge(g, &problem.bounds, self.box_px, EDGE_STEP, &mut self.rng);
+                }
+            }
             problem.evaluate_batch(0, &self.pop.genes[keep..], &mut self.pop.fit[keep..]);
         }
     }
@@ -251,7 +278,7 @@ impl StreamTracker {
             &scorer.params,
             config.tracking.point_stride,
         )];
-        let tracker = Tracker::new(&config, config.ga.seed);
+        let tracker = Tracker::new(&config, [model.l_p, model.b_p], config.ga.seed);
         let strip = 2.0 * model.outer_width_px;
         Self {
             extent_px: [model.l_p + strip, model.b_p + strip],
@@ -342,5 +369,55 @@ impl StreamTracker {
         };
         pose.sanitize();
         pose
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The statuses `judge` gives a sequence of `(F, acquired)` with the default settings.
+    fn statuses(frames: &[(f64, bool)]) -> Vec<u32> {
+        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        frames.iter().map(|&(f, acquired)| tracker.judge(f, acquired)).collect()
+    }
+
+    const T: u32 = status::TRACKING;
+    const S: u32 = status::SEARCHING;
+    const L: u32 = status::LOST;
+
+    #[test]
+    fn a_fitness_well_below_the_best_since_acquisition_is_searching() {
+        // 0.85 × 1.95 = 1.6575: F 1.60 is above min_fitness (1.0) but a slipped model.
+        assert_eq!(
+            statuses(&[(1.95, true), (1.94, false), (1.60, false), (1.90, false)]),
+            [T, T, S, T]
+        );
+        // The reference rises with the best F: 0.85 × 2.2 = 1.87.
+        assert_eq!(statuses(&[(1.95, true), (2.2, false), (1.85, false)]), [T, T, S]);
+        // A fresh acquisition is the new reference, even when it is lower.
+        assert_eq!(statuses(&[(1.95, true), (1.5, true), (1.45, false)]), [T, T, T]);
+    }
+
+    #[test]
+    fn searching_too_long_is_lost_and_acquired_afresh() {
+        let settings = TrackingSettings::default();
+        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        tracker.pop.genes.push([0.5; GENES]);
+        assert_eq!(tracker.judge(1.95, true), T);
+        for _ in 0..settings.lost_after_frames {
+            assert_eq!(tracker.judge(1.5, false), S);
+            assert!(!tracker.needs_acquisition());
+        }
+        assert_eq!(tracker.judge(1.5, false), L);
+        assert!(tracker.needs_acquisition());
+    }
+
+    #[test]
+    fn below_the_floor_or_nan_is_lost_at_once() {
+        assert_eq!(
+            statuses(&[(1.95, true), (0.4, false), (f64::NAN, false), (0.9, false)]),
+            [T, L, L, S]
+        );
     }
 }

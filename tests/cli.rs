@@ -338,6 +338,11 @@ fn each_bad_input_class_exits_with_one_line() {
             "[tracking]\nlost_fitness = 1.5\n",
             "[tracking] lost_fitness: 1.5 must lie in [0, min_fitness = 1]",
         ),
+        (
+            "share.toml",
+            "[tracking]\nmin_fitness_share = 1.2\n",
+            "[tracking] min_fitness_share: 1.2 must lie in [0, 1]",
+        ),
     ];
     for (name, text, problem) in configs {
         write(name, text);

@@ -100,6 +100,7 @@ proptest! {
                 prop_assert!(c.ga.population >= 4 && c.tracking.population >= 4);
                 let t = &c.tracking;
                 prop_assert!(t.lost_fitness >= 0.0 && t.lost_fitness <= t.min_fitness && t.min_fitness.is_finite());
+                prop_assert!((0.0..=1.0).contains(&t.min_fitness_share));
             }
         }
     }

@@ -8,7 +8,7 @@
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::{rank, snapshot_generations, Genes, Outcome, Problem, Snapshot, GENES};
+use super::{rank, snapshot_generations, Bounds, Genes, Outcome, Problem, Snapshot, GENES};
 use crate::config::{GaSettings, RobustSettings};
 use crate::fitness::Fitness;
 use crate::pose::PoseSize;
@@ -33,6 +33,30 @@ pub fn mutate(g: &mut Genes, sigma: f64, rng: &mut impl Rng) {
             *v = (*v + sigma * normal(rng)).clamp(0.0, 1.0);
         }
     }
+}
+
+/// Rescales the model by a log-normal factor (`step` its spread) along its x or y axis
+/// while one of its two edges across that axis stays put. A model of a `box_px` photo box
+/// (`[L_P, B_P]`) that covers only part of its target, one edge on the target's edge and
+/// the other inside it, grows back along this ridge, which single-gene mutations cross
+/// only by chance.
+pub fn mutate_from_edge(g: &mut Genes, bounds: &Bounds, box_px: [f64; 2], step: f64, rng: &mut impl Rng) {
+    let mut p = bounds.decode(g);
+    let factor = (step * normal(rng)).exp();
+    let [length, width] = p.size_mm(box_px[0], box_px[1]);
+    let (axis, extent) = if rng.random::<bool>() {
+        // β = α·k stays: only the length changes.
+        p.alpha /= factor;
+        p.k *= factor;
+        (Vector3::x(), length)
+    } else {
+        p.k /= factor;
+        (Vector3::y(), width)
+    };
+    // The centre moves away from the fixed edge by half the change of the extent.
+    let side = if rng.random::<bool>() { 0.5 } else { -0.5 };
+    p.position += p.rotation() * axis * (side * (factor - 1.0) * extent);
+    *g = bounds.encode(&p);
 }
 
 /// Blend crossover (BLX-0.25): each gene drawn between and slightly beyond the parents'.
@@ -351,5 +375,55 @@ mod tests {
         let mut same = [0.5; GENES];
         mutate(&mut same, 0.01, &mut rng);
         assert!(same.iter().any(|&v| v != 0.5), "at least one gene mutates");
+    }
+
+    #[test]
+    fn an_edge_rescale_keeps_one_edge_and_the_other_axis() {
+        let bounds = Bounds {
+            lo: [-300.0, -300.0, 300.0, -1.0, -1.0, -1.0, 0.5, 0.5],
+            hi: [300.0, 300.0, 1200.0, 1.0, 1.0, 1.0, 10.0, 2.0],
+            log_alpha: true,
+        };
+        let box_px = [200.0, 150.0];
+        let start = PoseSize::from_pose(
+            &Isometry3::from_parts(
+                Translation3::new(10.0, -20.0, 600.0),
+                UnitQuaternion::from_euler_angles(0.3, -0.2, 0.5),
+            ),
+            [180.0, 120.0],
+            box_px[0],
+            box_px[1],
+        );
+        // The edge lines along the model's own axes, hand frame: the offsets of the ±x
+        // edges (length) along x, of the ±y edges (width) along y, and of the plane.
+        let axes = [0, 1, 2].map(|i| start.rotation() * Vector3::ith(i, 1.0));
+        let edges = |p: &PoseSize| {
+            let [l, b] = p.size_mm(box_px[0], box_px[1]);
+            let at = |i: usize| p.position.dot(&axes[i]);
+            [
+                at(0) + l / 2.0,
+                at(0) - l / 2.0,
+                at(1) + b / 2.0,
+                at(1) - b / 2.0,
+                at(2),
+            ]
+        };
+        let before = edges(&start);
+        let mut rng = StdRng::seed_from_u64(4);
+        let mut kept = [0; 4];
+        for _ in 0..400 {
+            let mut g = bounds.encode(&start);
+            mutate_from_edge(&mut g, &bounds, box_px, 0.05, &mut rng);
+            let after = edges(&bounds.decode(&g));
+            let still: Vec<bool> = (0..5).map(|i| (after[i] - before[i]).abs() < 1e-6).collect();
+            // The plane, both edges of the other axis and one of the rescaled axis stay put.
+            assert!(still[4], "{before:?} → {after:?}");
+            assert_eq!(still.iter().filter(|s| **s).count(), 4, "{before:?} → {after:?}");
+            kept[still.iter().position(|s| !s).unwrap()] += 1;
+        }
+        assert!(
+            kept.iter().all(|&n| n > 60),
+            "each edge moves about a quarter of the time: {kept:?}"
+        );
     }
 }
