@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use nalgebra::{Isometry3, Point3};
 
 use crate::camera::{Intrinsics, StereoRig};
-use crate::color::{rgb_to_hsv, yuv_to_rgb, ColorClasses};
+use crate::color::{rgb_to_hsv, ColorClasses};
 
 /// A problem reading a frame.
 #[derive(Debug, thiserror::Error)]
@@ -71,58 +71,6 @@ impl StereoImages {
         Ok(Self {
             left: imageops::crop_imm(sbs, 0, 0, half, h).to_image(),
             right: imageops::crop_imm(sbs, half, 0, half, h).to_image(),
-        })
-    }
-
-    /// Splits a side-by-side RGB8 buffer (`height` rows of `row_stride` bytes, eyes of
-    /// `width` pixels); `None` when the buffer is too small for that.
-    pub fn from_rgb8_sbs(width: usize, height: usize, row_stride: usize, bytes: &[u8]) -> Option<Self> {
-        let row = 2 * width * 3;
-        if width == 0 || height == 0 || row_stride < row || bytes.len() < row_stride * (height - 1) + row {
-            return None;
-        }
-        let eye = |e: usize| {
-            let mut out = Vec::with_capacity(width * height * 3);
-            for y in 0..height {
-                let start = y * row_stride + e * width * 3;
-                out.extend_from_slice(&bytes[start..start + width * 3]);
-            }
-            RgbImage::from_raw(width as u32, height as u32, out)
-        };
-        Some(Self {
-            left: eye(0)?,
-            right: eye(1)?,
-        })
-    }
-
-    /// Converts a side-by-side YUYV buffer (BT.601, [`crate::color::yuv_to_rgb`]) into
-    /// its eyes; `None` when the buffer is too small or an eye's width is odd.
-    pub fn from_yuyv_sbs(width: usize, height: usize, row_stride: usize, bytes: &[u8]) -> Option<Self> {
-        let row = 2 * width * 2;
-        if width == 0
-            || width % 2 != 0
-            || height == 0
-            || row_stride < row
-            || bytes.len() < row_stride * (height - 1) + row
-        {
-            return None;
-        }
-        let eye = |e: usize| {
-            let mut out = Vec::with_capacity(width * height * 3);
-            for y in 0..height {
-                let start = y * row_stride + e * width * 2;
-                for q in bytes[start..start + width * 2].chunks_exact(4) {
-                    for luma in [q[0], q[2]] {
-                        let (r, g, b) = yuv_to_rgb(luma, q[1], q[3]);
-                        out.extend_from_slice(&[r, g, b]);
-                    }
-                }
-            }
-            RgbImage::from_raw(width as u32, height as u32, out)
-        };
-        Some(Self {
-            left: eye(0)?,
-            right: eye(1)?,
         })
     }
 
@@ -344,21 +292,6 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("f.png") && e.contains("odd"), "{e}");
-    }
-
-    #[test]
-    fn raw_side_by_side_buffers_split_into_eyes() {
-        let mut sbs = RgbImage::from_pixel(6, 2, Rgb([1, 2, 3]));
-        sbs.put_pixel(3, 1, Rgb([200, 100, 50]));
-        // Rows padded to 20 bytes.
-        let mut bytes = vec![0u8; 20 * 2];
-        for y in 0..2 {
-            bytes[y * 20..y * 20 + 18].copy_from_slice(&sbs.as_raw()[y * 18..y * 18 + 18]);
-        }
-        let st = StereoImages::from_rgb8_sbs(3, 2, 20, &bytes).unwrap();
-        assert_eq!(st.to_sbs(), sbs);
-        assert!(StereoImages::from_rgb8_sbs(3, 2, 20, &bytes[..37]).is_none());
-        assert!(StereoImages::from_rgb8_sbs(3, 2, 17, &bytes).is_none());
     }
 
     #[test]

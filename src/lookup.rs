@@ -12,7 +12,7 @@
 use rayon::prelude::*;
 
 use crate::camera::StereoRig;
-use crate::color::{bt601, ColorClasses, BLACK, GRAY, WHITE};
+use crate::color::{bt601, yuv_to_rgb, ColorClasses, BLACK, GRAY, WHITE};
 use image::RgbImage;
 
 use crate::frame::{coarse_levels, ColorPlane, FrameLevel, PixelColor, Region, StereoImages};
@@ -370,17 +370,36 @@ impl SbsBytes<'_> {
             && self.bytes.len() >= self.row_stride * (self.height - 1) + row
     }
 
-    /// Both eyes as RGB images (for a one-shot search over the whole frame); `None`
-    /// when the frame is not complete.
+    /// Both eyes as RGB images (for a one-shot search over the whole frame; YUYV through
+    /// [`yuv_to_rgb`]); `None` when the frame is not complete.
     pub fn to_images(&self) -> Option<StereoImages> {
         if !self.is_complete() {
             return None;
         }
-        let (w, h, stride) = (self.width, self.height, self.row_stride);
-        match self.format {
-            PixelFormat::Rgb8 => StereoImages::from_rgb8_sbs(w, h, stride, self.bytes),
-            PixelFormat::Yuyv => StereoImages::from_yuyv_sbs(w, h, stride, self.bytes),
-        }
+        let (w, h) = (self.width, self.height);
+        let row_len = w * self.format.bytes_per_pixel();
+        let eye = |e: usize| {
+            let mut out = Vec::with_capacity(w * h * 3);
+            for y in 0..h {
+                let row = &self.bytes[y * self.row_stride + e * row_len..][..row_len];
+                match self.format {
+                    PixelFormat::Rgb8 => out.extend_from_slice(row),
+                    PixelFormat::Yuyv => {
+                        for q in row.chunks_exact(4) {
+                            for luma in [q[0], q[2]] {
+                                let (r, g, b) = yuv_to_rgb(luma, q[1], q[3]);
+                                out.extend_from_slice(&[r, g, b]);
+                            }
+                        }
+                    }
+                }
+            }
+            RgbImage::from_raw(w as u32, h as u32, out)
+        };
+        Some(StereoImages {
+            left: eye(0)?,
+            right: eye(1)?,
+        })
     }
 }
 
@@ -504,7 +523,6 @@ mod tests {
     /// Every YUV triple: the YUYV row path equals BT.601 to RGB, then the RGB reference.
     #[test]
     fn yuyv_rows_equal_the_reference_conversion_on_every_colour() {
-        use crate::color::yuv_to_rgb;
         for second in [SecondByte::Saturation, SecondByte::RawHue] {
             let rule = rule(second);
             let mut yuyv = vec![0u8; 2 * 256];
@@ -527,6 +545,28 @@ mod tests {
     }
 
     /// YUYV regions (odd and even edges, both eyes) read as their RGB conversion does.
+    #[test]
+    fn raw_side_by_side_buffers_split_into_eyes() {
+        let mut sbs = RgbImage::from_pixel(6, 2, image::Rgb([1, 2, 3]));
+        sbs.put_pixel(3, 1, image::Rgb([200, 100, 50]));
+        // Rows padded to 20 bytes.
+        let mut bytes = vec![0u8; 20 * 2];
+        for y in 0..2 {
+            bytes[y * 20..y * 20 + 18].copy_from_slice(&sbs.as_raw()[y * 18..y * 18 + 18]);
+        }
+        let frame = |bytes, row_stride| SbsBytes {
+            bytes,
+            width: 3,
+            height: 2,
+            row_stride,
+            format: PixelFormat::Rgb8,
+        };
+        let st = frame(&bytes, 20).to_images().unwrap();
+        assert_eq!(st.to_sbs(), sbs);
+        assert!(frame(&bytes[..37], 20).to_images().is_none());
+        assert!(frame(&bytes, 17).to_images().is_none());
+    }
+
     #[test]
     fn yuyv_refill_equals_the_refill_of_its_rgb_conversion() {
         use rand::{Rng, SeedableRng};

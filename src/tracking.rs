@@ -243,6 +243,17 @@ pub enum FrameError {
     Calibration(#[from] CalibrationError),
 }
 
+impl FrameError {
+    fn incomplete(frame: &SbsBytes) -> Self {
+        Self::Incomplete {
+            len: frame.bytes.len(),
+            width: frame.width,
+            height: frame.height,
+            stride: frame.row_stride,
+        }
+    }
+}
+
 /// What the next [`StreamTracker::step`] works on.
 enum Ready {
     /// Lookup regions around the prediction were refilled from the frame.
@@ -297,12 +308,7 @@ impl StreamTracker {
     pub fn prepare(&mut self, frame: &SbsBytes) -> Result<(), FrameError> {
         self.ready = None;
         if !frame.is_complete() {
-            return Err(FrameError::Incomplete {
-                len: frame.bytes.len(),
-                width: frame.width,
-                height: frame.height,
-                stride: frame.row_stride,
-            });
+            return Err(FrameError::incomplete(frame));
         }
         let rig = self
             .config
@@ -326,12 +332,7 @@ impl StreamTracker {
                 Ready::Regions
             }
             None => {
-                let images = frame.to_images().ok_or(FrameError::Incomplete {
-                    len: frame.bytes.len(),
-                    width: frame.width,
-                    height: frame.height,
-                    stride: frame.row_stride,
-                })?;
+                let images = frame.to_images().ok_or_else(|| FrameError::incomplete(frame))?;
                 Ready::Acquire(Box::new(Prepared::new(&self.model, &images, &self.config)?))
             }
         };
