@@ -52,11 +52,6 @@ impl FrameSkips {
         self.logged[reason] = Some(now);
     }
 
-    /// All skipped frames.
-    pub fn total(&self) -> u64 {
-        self.counts.iter().sum()
-    }
-
     /// `"none"`, or the counts per reason: `"3 wrong length, 1 unknown pixel format"`.
     pub fn summary(&self) -> String {
         let parts: Vec<String> = (0..REASONS)
@@ -90,7 +85,7 @@ mod tests {
         }
         skips.fault(9, &FrameFault::UnknownPixelFormat { code: 7 });
         skips.unusable(10, &"size not calibrated");
-        assert_eq!(skips.total(), 7);
+        assert_eq!(skips.counts.iter().sum::<u64>(), 7);
         assert_eq!(skips.summary(), "1 unknown pixel format, 5 wrong length, 1 not usable");
         // The first of each reason was logged; the other four wait for the next line.
         assert_eq!(skips.unlogged[FrameFault::KINDS.len() - 1], 4);
