@@ -14,13 +14,14 @@ use photopose::messages::status;
 use photopose::messages::PixelFormat;
 use photopose::model::PhotoModel;
 use photopose::render::{self, Background, Card, Scene};
+use photopose::stats::Samples;
 use photopose::tracking::{Estimate, StreamTracker};
 
 use crate::scenes::{self, photo, rotation, PHOTOS};
 
 /// The rocket card of scene `rocket-650-30` in front of the collage wall, with the
-/// rendered scene's configuration, model and HD rig.
-fn rocket_scene() -> (scenes::Rendered, StereoRig, Scene) {
+/// scene's spec, the rendered scene's configuration and model, and the HD rig.
+fn rocket_scene() -> (scenes::Spec, scenes::Rendered, StereoRig, Scene) {
     let spec = scenes::all()
         .into_iter()
         .find(|s| s.name == "rocket-650-30")
@@ -46,7 +47,7 @@ fn rocket_scene() -> (scenes::Rendered, StereoRig, Scene) {
         occluder: None,
         seed: 3,
     };
-    (r, rig, scene)
+    (spec, r, rig, scene)
 }
 
 /// Renders `scene` and runs one tracker step on it: the estimate and the step's time, ms
@@ -69,11 +70,7 @@ fn step(tracker: &mut StreamTracker, rig: &StereoRig, r: &scenes::Rendered, scen
 /// Position error (mm) of the tracked model origin on every frame of a 150 mm/s pass.
 #[test]
 fn tracks_a_card_moving_at_150_mm_per_s() {
-    let (r, rig, mut scene) = rocket_scene();
-    let spec = scenes::all()
-        .into_iter()
-        .find(|s| s.name == "rocket-650-30")
-        .expect("scene");
+    let (spec, r, rig, mut scene) = rocket_scene();
     let (fps, speed) = (60.0, 150.0);
     let frames = 40;
     let mut tracker = StreamTracker::new(r.model.clone(), r.config.clone());
@@ -121,7 +118,7 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
 /// `F` is below `[tracking] lost_fitness` is `lost` at once, never `tracking`.
 #[test]
 fn a_pose_below_the_fitness_floor_is_lost_never_tracking() {
-    let (r, rig, mut scene) = rocket_scene();
+    let (_, r, rig, mut scene) = rocket_scene();
     let settings = r.config.tracking.clone();
     let mut tracker = StreamTracker::new(r.model.clone(), r.config.clone());
     let mut statuses = Vec::new();
@@ -195,8 +192,7 @@ fn tracking_recovers_the_whole_card_after_the_acquisition_gap() {
                 statuses.push(est.status);
             }
         }
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-        let (error, size_error) = (mean(&errors), mean(&size_errors));
+        let (error, size_error) = (Samples::new(errors).mean(), Samples::new(size_errors).mean());
         summary.push(format!("gap {gap}: {error:.1} mm, size {:.1} %", 100.0 * size_error));
         assert!(
             error <= 5.0 && size_error <= 0.05,
