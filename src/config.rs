@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
-use crate::calibration::{Calibration, CalibrationError};
-use crate::color::ColorClasses;
-use crate::realtime::RealtimeSettings;
+use crate::camera::calibration::{Calibration, CalibrationError};
+use crate::estimator::realtime::RealtimeSettings;
+use crate::vision::color::ColorClasses;
 
 /// The built-in configuration, used when no `--config` is given.
 pub const DEFAULT_TOML: &str = include_str!("../config/default.toml");

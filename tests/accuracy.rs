@@ -2,9 +2,9 @@
 //! paper mode; the robust mode must reach the error bounds.
 
 use photopose::config::Mode;
-use photopose::estimate;
-use photopose::ga::Outcome;
-use photopose::pose::rotation_error_deg;
+use photopose::estimator::ga::Outcome;
+use photopose::estimator::oneshot;
+use photopose::estimator::pose::rotation_error_deg;
 
 use crate::scenes::{self, Rendered};
 
@@ -40,7 +40,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn run(r: &Rendered, mode: Mode) -> Errors {
     let mut config = r.config.clone();
     config.ga.mode = mode;
-    let out = estimate::run(
+    let out = oneshot::run(
         &r.model,
         &r.images,
         &config,
@@ -120,8 +120,8 @@ fn rendered_scenes_reach_the_accuracy_targets() {
 #[test]
 #[ignore]
 fn diagnose() {
-    use photopose::estimate::Prepared;
-    use photopose::pose::PoseSize;
+    use photopose::estimator::oneshot::Prepared;
+    use photopose::estimator::pose::PoseSize;
     let only = std::env::var("SCENE").ok();
     for (i, spec) in scenes::all().iter().enumerate() {
         if only.as_deref().is_some_and(|o| o != spec.name) {
@@ -138,7 +138,7 @@ fn diagnose() {
             let mut best = 0.0f64;
             let mut nonzero = 0;
             for _ in 0..20000 {
-                let g = photopose::ga::robust::view_sample(&problem, &mut rng);
+                let g = photopose::estimator::ga::robust::view_sample(&problem, &mut rng);
                 let f = problem.evaluate(2, &g).f;
                 best = best.max(f);
                 nonzero += (f != 0.0) as usize;
@@ -156,7 +156,7 @@ fn diagnose() {
             }
         }
         let t0 = std::time::Instant::now();
-        let out = estimate::run(&r.model, &r.images, &r.config, 1000, 1, &mut |_| {}).unwrap();
+        let out = oneshot::run(&r.model, &r.images, &r.config, 1000, 1, &mut |_| {}).unwrap();
         let dt = t0.elapsed().as_secs_f64();
         let og = problem.bounds.encode(&out.best);
         let levels: Vec<String> = (0..prepared.levels.len())
@@ -181,7 +181,7 @@ fn diagnose() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/diagnose");
         std::fs::create_dir_all(&dir).unwrap();
         r.images.to_sbs().save(dir.join(format!("{}.png", spec.name))).unwrap();
-        let pic = photopose::overlay::draw(
+        let pic = photopose::cli::report::overlay::draw(
             &r.images,
             &prepared.scorer,
             &prepared.levels[0].rig,
@@ -189,7 +189,13 @@ fn diagnose() {
             &out.best,
         );
         pic.save(dir.join(format!("{}-overlay.png", spec.name))).unwrap();
-        let pic = photopose::overlay::draw(&r.images, &prepared.scorer, &prepared.levels[0].rig, &r.model, &truth);
+        let pic = photopose::cli::report::overlay::draw(
+            &r.images,
+            &prepared.scorer,
+            &prepared.levels[0].rig,
+            &r.model,
+            &truth,
+        );
         pic.save(dir.join(format!("{}-truth.png", spec.name))).unwrap();
         let t = problem.evaluate(0, &tg);
         for sn in &out.snapshots {
@@ -208,8 +214,8 @@ fn diagnose() {
 /// pose 15 mm or 10° away from it (11 of 12 measured).
 #[test]
 fn ground_truth_is_the_robust_fitness_peak() {
-    use photopose::estimate::Prepared;
-    use photopose::pose::PoseSize;
+    use photopose::estimator::oneshot::Prepared;
+    use photopose::estimator::pose::PoseSize;
     use rand::SeedableRng;
     let mut held = Vec::new();
     let clean: Vec<_> = scenes::all().into_iter().filter(|s| !s.hard()).collect();
@@ -223,7 +229,7 @@ fn ground_truth_is_the_robust_fitness_peak() {
         let mut rival = (0..3000)
             .map(|_| {
                 problem
-                    .evaluate(0, &photopose::ga::robust::view_sample(&problem, &mut rng))
+                    .evaluate(0, &photopose::estimator::ga::robust::view_sample(&problem, &mut rng))
                     .f
             })
             .fold(f64::NEG_INFINITY, f64::max);

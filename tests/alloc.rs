@@ -5,14 +5,14 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nalgebra::{Isometry3, Translation3};
-use photopose::calibration::Resolution;
-use photopose::color::rgb_row_to_yuyv;
+use photopose::camera::calibration::Resolution;
 use photopose::config::Config;
-use photopose::lookup::SbsBytes;
-use photopose::messages::PixelFormat;
-use photopose::model::PhotoModel;
+use photopose::estimator::model::PhotoModel;
+use photopose::estimator::tracking::StreamTracker;
 use photopose::render::{Renderer, SceneSpec};
-use photopose::tracking::StreamTracker;
+use photopose::vision::color::rgb_row_to_yuyv;
+use photopose::vision::lookup::SbsBytes;
+use photopose::vision::PixelFormat;
 
 /// Counts every allocation of every thread.
 struct Counting;

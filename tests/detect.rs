@@ -48,9 +48,9 @@ mod with_detector {
 
     use photopose::config::Config;
     use photopose::detect::{self, coco, Detector, Rect};
-    use photopose::estimate;
-    use photopose::model::PhotoModel;
-    use photopose::pose::rotation_error_deg;
+    use photopose::estimator::model::PhotoModel;
+    use photopose::estimator::oneshot;
+    use photopose::estimator::pose::rotation_error_deg;
 
     use crate::cli::{fails_with, photopose, scratch};
     use crate::scenes::{self, data, Spec};
@@ -174,7 +174,7 @@ mod with_detector {
                 // The detected scene is estimated with the model file `photopose model` wrote.
                 let m = if bbox == detected_box { &model } else { &r.model };
                 let c = &r.config;
-                let outcome = estimate::run(m, &r.images, c, c.ga.generations, c.ga.seed, &mut |_| {}).unwrap();
+                let outcome = oneshot::run(m, &r.images, c, c.ga.generations, c.ga.seed, &mut |_| {}).unwrap();
                 let best = &outcome.best;
                 let size = best.size_mm(m.l_p, m.b_p);
                 row.push([

@@ -4,14 +4,15 @@
 
 use std::path::Path;
 
-use photopose::calibration::{Calibration, Resolution};
+use photopose::camera::calibration::{Calibration, Resolution};
 use photopose::capture::sequence::FrameRecord;
 use photopose::config::{Config, DEFAULT_TOML, EXAMPLE_CALIBRATION};
-use photopose::frame::StereoImages;
-use photopose::lookup::SbsBytes;
-use photopose::messages::{validate_frame, FrameFault, FrameHeader, PixelFormat};
-use photopose::model::PhotoModel;
+use photopose::estimator::model::PhotoModel;
 use photopose::render::SceneSpec;
+use photopose::transport::messages::{validate_frame, FrameFault, FrameHeader};
+use photopose::vision::frame::StereoImages;
+use photopose::vision::lookup::SbsBytes;
+use photopose::vision::PixelFormat;
 use proptest::prelude::*;
 
 use crate::scenes::data;

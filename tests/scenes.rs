@@ -5,11 +5,11 @@ use std::path::{Path, PathBuf};
 
 use image::RgbImage;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use photopose::calibration::Resolution;
+use photopose::camera::calibration::Resolution;
 use photopose::config::Config;
-use photopose::frame::{load_rgb, StereoImages};
-use photopose::model::PhotoModel;
+use photopose::estimator::model::PhotoModel;
 use photopose::render::{self, Background, Card, Scene};
+use photopose::vision::frame::{load_rgb, StereoImages};
 
 /// Photos shipped for tests (public domain / CC0, from scikit-image's sample data).
 pub const PHOTOS: [&str; 4] = ["coffee.jpg", "chelsea.jpg", "astronaut.jpg", "rocket.jpg"];

@@ -15,10 +15,10 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use common::scratch;
+use photopose::cli::report::stats::Samples;
 use photopose::client::PoseClient;
-use photopose::ipc::{send_pose, Ipc, PoseSubscriber};
-use photopose::messages::{monotonic_ns, status, PoseMsg, POSES_SERVICE, TRUTH_SERVICE};
-use photopose::stats::Samples;
+use photopose::transport::ipc::{send_pose, Ipc, PoseSubscriber};
+use photopose::transport::messages::{monotonic_ns, PoseMsg, Status, POSES_SERVICE, TRUTH_SERVICE};
 
 /// One process test at a time (they use the same iceoryx2 services).
 fn serial() -> MutexGuard<'static, ()> {
@@ -193,7 +193,7 @@ fn capture_and_estimator_processes_track_a_moving_card() {
     let acquisition_s = (first.publish_time_ns - first.capture_time_ns) as f64 * 1e-9;
     // Tracking error against the truth of the same frame, after acquisition.
     let errors = Samples::new(got[1..].iter().map(|p| position_error(p, &w.truths[&p.frame_id])));
-    let tracking = got.iter().filter(|p| p.status == status::TRACKING).count();
+    let tracking = got.iter().filter(|p| p.status == Status::Tracking as u32).count();
     let latency = Samples::new(
         got[1..]
             .iter()
@@ -321,11 +321,13 @@ fn the_estimator_applies_its_realtime_options() {
     .unwrap();
     // Whether this machine lets the tests' user use SCHED_FIFO decides what to expect.
     let fifo_allowed = std::thread::spawn(|| {
-        let wish = photopose::realtime::RealtimeSettings {
+        let wish = photopose::estimator::realtime::RealtimeSettings {
             fifo_priority: 1,
             ..Default::default()
         };
-        photopose::realtime::apply_to_thread(&wish, 0).fifo_priority.is_some()
+        photopose::estimator::realtime::apply_to_thread(&wish, 0)
+            .fifo_priority
+            .is_some()
     })
     .join()
     .unwrap();
@@ -967,8 +969,8 @@ fn shared_memory_is_private_to_the_user() {
 /// memory: it skips and counts each, keeps running, and tracks the next good frame.
 #[test]
 fn the_estimator_skips_frames_whose_header_disagrees_with_the_payload() {
-    use photopose::ipc::wake_up;
-    use photopose::messages::{pixel_format, FrameHeader, FRAMES_SERVICE};
+    use photopose::transport::ipc::wake_up;
+    use photopose::transport::messages::{pixel_format, FrameHeader, FRAMES_SERVICE};
     let _serial = serial();
     let frame = image::open(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/examples/rocket-frame.jpg"))
         .expect("example frame")

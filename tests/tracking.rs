@@ -8,14 +8,15 @@ use nalgebra::{Isometry3, Translation3, Vector3};
 use photopose::camera::StereoRig;
 use photopose::capture::synthetic::SyntheticSource;
 use photopose::capture::{FrameSource, Truth};
+use photopose::cli::estimator::pose_msg;
+use photopose::cli::report::stats::Samples;
 use photopose::config::Config;
-use photopose::lookup::SbsBytes;
-use photopose::messages::status;
-use photopose::messages::PixelFormat;
-use photopose::model::PhotoModel;
+use photopose::estimator::model::PhotoModel;
+use photopose::estimator::tracking::{Estimate, StreamTracker, TrackState};
 use photopose::render::{self, Background, Card, Scene};
-use photopose::stats::Samples;
-use photopose::tracking::{Estimate, StreamTracker};
+use photopose::transport::messages::Status;
+use photopose::vision::lookup::SbsBytes;
+use photopose::vision::PixelFormat;
 
 use crate::scenes::{self, photo, rotation, PHOTOS};
 
@@ -30,7 +31,7 @@ fn rocket_scene() -> (scenes::Spec, scenes::Rendered, StereoRig, Scene) {
     let rig = r
         .config
         .calibration
-        .rig(photopose::calibration::Resolution::HD)
+        .rig(photopose::camera::calibration::Resolution::HD)
         .expect("HD");
     let full = photo(spec.photo);
     let [x, y, w, h] = spec.bbox;
@@ -92,7 +93,7 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
             assert_eq!(est.generations as usize, r.config.tracking.acquire_generations);
         } else {
             assert_eq!(est.generations as usize, r.config.tracking.generations_per_frame);
-            assert_eq!(est.status, status::TRACKING, "frame {i}: F {:.3}", est.fitness.f);
+            assert_eq!(est.state, TrackState::Tracking, "frame {i}: F {:.3}", est.fitness.f);
             errors.push(err);
         }
     }
@@ -128,24 +129,27 @@ fn a_pose_below_the_fitness_floor_is_lost_never_tracking() {
             scene.card.hand_from_model = Isometry3::translation(5000.0, 0.0, 650.0);
         }
         let (est, _) = step(&mut tracker, &rig, &r, &scene);
-        let pose = tracker.pose_msg(&est, i, 0);
+        let pose = pose_msg(tracker.model(), &est, i, 0);
         assert!(pose.is_sound(), "frame {i}: {pose:?}");
         let f = pose.fitness;
         if f < settings.lost_fitness {
-            assert_eq!(pose.status, status::LOST, "frame {i}: F {f:.3} below the floor");
+            assert_eq!(pose.status, Status::Lost as u32, "frame {i}: F {f:.3} below the floor");
         }
         if f < settings.min_fitness {
-            assert_ne!(pose.status, status::TRACKING, "frame {i}: F {f:.3}");
+            assert_ne!(pose.status, Status::Tracking as u32, "frame {i}: F {f:.3}");
         }
         statuses.push((pose.status, f));
     }
     println!("status and F per frame: {statuses:?}");
     assert!(
-        statuses[..3].iter().all(|(s, _)| *s == status::TRACKING),
+        statuses[..3].iter().all(|(s, _)| *s == Status::Tracking as u32),
         "{statuses:?}"
     );
     // Long before `lost_after_frames` (30) searching frames, the floor already says lost.
-    assert!(statuses[3..].iter().any(|(s, _)| *s == status::LOST), "{statuses:?}");
+    assert!(
+        statuses[3..].iter().any(|(s, _)| *s == Status::Lost as u32),
+        "{statuses:?}"
+    );
 }
 
 /// The estimator's timeline on the synthetic camera at 150 mm/s: the acquisition on frame
@@ -189,7 +193,7 @@ fn tracking_recovers_the_whole_card_after_the_acquisition_gap() {
                 errors.push((est.best.position - truth.hand_from_model.translation.vector).norm());
                 let length = est.best.size_mm(model.l_p, model.b_p)[0];
                 size_errors.push((length / truth.size_mm[0] - 1.0).abs());
-                statuses.push(est.status);
+                statuses.push(est.state);
             }
         }
         let (error, size_error) = (Samples::new(errors).mean(), Samples::new(size_errors).mean());
@@ -200,7 +204,7 @@ fn tracking_recovers_the_whole_card_after_the_acquisition_gap() {
             100.0 * size_error
         );
         assert!(
-            statuses.iter().all(|s| *s == status::TRACKING),
+            statuses.iter().all(|s| *s == TrackState::Tracking),
             "gap {gap}: {statuses:?}"
         );
     }

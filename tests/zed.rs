@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Translation3};
-use photopose::calibration::Resolution;
+use photopose::camera::calibration::Resolution;
 use photopose::capture::record::Recorder;
 use photopose::capture::replay::ReplaySource;
 use photopose::capture::sequence::Sequence;
@@ -14,13 +14,13 @@ use photopose::capture::zed::fake::{Attempt, ScriptedOpener, Step};
 use photopose::capture::zed::stream::{Backoff, ZedSource};
 use photopose::capture::zed::Mode;
 use photopose::capture::FrameSource;
-use photopose::color::rgb_row_to_yuyv;
 use photopose::config::Config;
-use photopose::lookup::SbsBytes;
-use photopose::messages::PixelFormat;
-use photopose::model::PhotoModel;
+use photopose::estimator::model::PhotoModel;
+use photopose::estimator::tracking::StreamTracker;
 use photopose::render::{Renderer, SceneSpec};
-use photopose::tracking::StreamTracker;
+use photopose::vision::color::rgb_row_to_yuyv;
+use photopose::vision::lookup::SbsBytes;
+use photopose::vision::PixelFormat;
 
 use crate::cli::{fails_with, photopose, scratch};
 use crate::scenes::data;

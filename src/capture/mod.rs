@@ -20,8 +20,9 @@ use std::time::Instant;
 
 use nalgebra::Isometry3;
 
-use crate::messages::{PixelFormat, PoseMsg};
-use crate::pose::PoseSize;
+use crate::estimator::pose::PoseSize;
+use crate::transport::messages::{PoseMsg, Status};
+use crate::vision::PixelFormat;
 
 /// Where frames come from.
 #[derive(Debug, Clone, PartialEq)]
@@ -106,7 +107,7 @@ impl Truth {
             size_mm: self.size_mm,
             fitness: 0.0,
             generations: 0,
-            status: crate::messages::status::TRACKING,
+            status: Status::Tracking.into(),
         }
     }
 }

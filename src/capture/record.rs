@@ -17,7 +17,7 @@ use image::{ExtendedColorType, ImageEncoder};
 
 use super::sequence::{FrameRecord, SequenceError, SequenceInfo, CSV_HEADER, FRAMES_FILE, INFO_FILE};
 use super::{FrameInfo, Geometry};
-use crate::messages::PixelFormat;
+use crate::vision::PixelFormat;
 
 /// Frames waiting for the writer at most.
 const QUEUE: usize = 8;

@@ -13,7 +13,8 @@ use image::{ColorType, ImageDecoder};
 
 use super::sequence::{due_offset, Sequence};
 use super::{FrameInfo, FrameSource, Geometry, SourceError, Truth};
-use crate::messages::{monotonic_ns, PixelFormat};
+use crate::transport::messages::monotonic_ns;
+use crate::vision::PixelFormat;
 
 /// Frames decoded ahead of playback.
 const AHEAD: usize = 4;

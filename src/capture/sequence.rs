@@ -22,7 +22,7 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::{Geometry, Truth};
-use crate::messages::PixelFormat;
+use crate::vision::PixelFormat;
 
 /// Format tag and version of `sequence.toml`.
 pub const FORMAT: &str = "photopose-sequence";

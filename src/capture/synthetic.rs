@@ -9,8 +9,9 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 use super::{FrameInfo, FrameSource, Geometry, SourceError, Truth};
 use crate::config::Config;
-use crate::messages::{monotonic_ns, PixelFormat};
 use crate::render::{Renderer, Scene, SceneSpec};
+use crate::transport::messages::monotonic_ns;
+use crate::vision::PixelFormat;
 
 /// A smooth closed loop around the scene's pose, in the hand frame: a Lissajous figure
 /// (x at the loop frequency, y at twice it, z at it with a phase) and a gentle turn

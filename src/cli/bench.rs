@@ -12,17 +12,17 @@ use serde::Serialize;
 
 use crate::capture::synthetic::SyntheticSource;
 use crate::capture::{FrameSource, DEFAULT_SCENE};
+use crate::cli::report::stats::Samples;
 use crate::config::Config;
-use crate::estimate::{self, Prepared};
-use crate::fitness::Fitness;
-use crate::frame::StereoImages;
-use crate::ga::robust::view_sample;
-use crate::ga::{Genes, Problem};
-use crate::lookup::SbsBytes;
-use crate::model::PhotoModel;
+use crate::estimator::fitness::Fitness;
+use crate::estimator::ga::robust::view_sample;
+use crate::estimator::ga::{Genes, Problem};
+use crate::estimator::model::PhotoModel;
+use crate::estimator::oneshot::{self, Prepared};
+use crate::estimator::tracking::StreamTracker;
 use crate::render::SceneSpec;
-use crate::stats::Samples;
-use crate::tracking::StreamTracker;
+use crate::vision::frame::StereoImages;
+use crate::vision::lookup::SbsBytes;
 
 /// Measure the fitness kernel, a one-shot estimate and the tracking loop.
 #[derive(clap::Args, Debug)]
@@ -127,7 +127,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
 
     // One-shot estimate, frame preparation included.
     let start = Instant::now();
-    let outcome = estimate::run(&model, &images, &config, 1000, config.ga.seed, &mut |_| {})?;
+    let outcome = oneshot::run(&model, &images, &config, 1000, config.ga.seed, &mut |_| {})?;
     let oneshot = start.elapsed().as_secs_f64();
     say(format!(
         "one-shot estimate, 1000 generations ({:?} mode): {oneshot:.3} s ({} evaluations, F {:.3})",

@@ -12,8 +12,8 @@ use crate::capture::replay::ReplaySource;
 use crate::capture::synthetic::SyntheticSource;
 use crate::capture::{FrameSource, Source};
 use crate::config::Config;
-use crate::ipc::{send_pose, wake_up, Ipc};
-use crate::messages::{monotonic_ns, FrameHeader, FRAMES_SERVICE, TRUTH_SERVICE};
+use crate::transport::ipc::{send_pose, wake_up, Ipc};
+use crate::transport::messages::{monotonic_ns, FrameHeader, FRAMES_SERVICE, TRUTH_SERVICE};
 
 /// Publish stereo frames.
 #[derive(clap::Args, Debug)]
@@ -168,7 +168,7 @@ mod zed {
     use anyhow::Result;
 
     use super::CaptureArgs;
-    use crate::calibration::Calibration;
+    use crate::camera::calibration::Calibration;
     use crate::capture::zed::discovery::{calibration_dirs, find_calibration, Sysfs};
     use crate::capture::zed::stream::{Backoff, ZedSource};
     use crate::capture::zed::v4l2::V4l2Opener;

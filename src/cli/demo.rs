@@ -14,12 +14,12 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Context, Result};
 
 use crate::capture::DEFAULT_SCENE;
+use crate::cli::report::plot::{self, Panel, Series, PALETTE};
+use crate::cli::report::stats::Samples;
 use crate::config::Config;
-use crate::ipc::Ipc;
-use crate::messages::{monotonic_ns, status, PoseMsg, POSES_SERVICE, TRUTH_SERVICE};
-use crate::plot::{self, Panel, Series, PALETTE};
 use crate::render::SceneSpec;
-use crate::stats::Samples;
+use crate::transport::ipc::Ipc;
+use crate::transport::messages::{monotonic_ns, PoseMsg, Status, POSES_SERVICE, TRUTH_SERVICE};
 
 /// Run capture, estimator and controller together on the synthetic camera.
 #[derive(clap::Args, Debug)]
@@ -244,7 +244,7 @@ impl Record {
         self.poses
             .iter()
             .skip(1)
-            .filter(|(p, _)| p.status == status::TRACKING)
+            .filter(|(p, _)| p.status == Status::Tracking as u32)
             .filter_map(|(p, at)| Some((p, self.truth.get(&p.frame_id)?, *at)))
     }
 
@@ -326,7 +326,11 @@ impl Record {
                 .skip(1)
                 .map(|(p, at)| at.saturating_sub(p.capture_time_ns) as f64 * 1e-6),
         );
-        let tracking = self.poses.iter().filter(|(p, _)| p.status == status::TRACKING).count();
+        let tracking = self
+            .poses
+            .iter()
+            .filter(|(p, _)| p.status == Status::Tracking as u32)
+            .count();
         let acquisition = self
             .poses
             .first()

@@ -6,9 +6,9 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 
 use crate::config::Config;
-use crate::estimate::{self, Prepared, Report};
-use crate::frame::StereoImages;
-use crate::model::PhotoModel;
+use crate::estimator::model::PhotoModel;
+use crate::estimator::oneshot::{self, Prepared, Report};
+use crate::vision::frame::StereoImages;
 
 #[derive(clap::Args, Debug)]
 pub struct EstimateArgs {
@@ -61,12 +61,12 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         (None, None) => String::new(),
     };
     let prepared = Prepared::new(&model, &images, &config).with_context(|| format!("frame {frame}"))?;
-    let outcome = estimate::search(&prepared, &config, generations, seed, &mut |g| {
+    let outcome = oneshot::search(&prepared, &config, generations, seed, &mut |g| {
         bar.set_position(g as u64)
     });
     bar.finish_and_clear();
     let elapsed = start.elapsed().as_secs_f64();
-    print!("{}", estimate::table(&model, &outcome));
+    print!("{}", oneshot::table(&model, &outcome));
     println!(
         "mode {:?}, {} generations, {} evaluations in {:.3} s; F_L {:.4}, F_R {:.4} (pose of the model in the hand frame)",
         config.ga.mode, outcome.generations, outcome.evaluations, elapsed, outcome.fitness.left, outcome.fitness.right
@@ -77,7 +77,7 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         println!("wrote {}", path.display());
     }
     if let Some(path) = &args.overlay {
-        let picture = crate::overlay::draw(
+        let picture = crate::cli::report::overlay::draw(
             &images,
             &prepared.scorer,
             &prepared.levels[0].rig,

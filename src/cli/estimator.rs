@@ -8,12 +8,14 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Result};
 
 use crate::config::Config;
-use crate::ipc::{send_pose, wake_up, Ipc};
-use crate::lookup::SbsBytes;
-use crate::messages::{monotonic_ns, validate_frame, FrameHeader, FRAMES_SERVICE, POSES_SERVICE};
-use crate::model::PhotoModel;
-use crate::realtime::{self, RealtimeSettings};
-use crate::tracking::StreamTracker;
+use crate::estimator::model::PhotoModel;
+use crate::estimator::realtime::{self, RealtimeSettings};
+use crate::estimator::tracking::{Estimate, StreamTracker, TrackState};
+use crate::transport::ipc::{send_pose, wake_up, Ipc};
+use crate::transport::messages::{
+    monotonic_ns, validate_frame, FrameHeader, PoseMsg, Status, FRAMES_SERVICE, POSES_SERVICE,
+};
+use crate::vision::lookup::SbsBytes;
 
 use super::skips::FrameSkips;
 
@@ -92,7 +94,7 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
         }
         drop(sample);
         let Some(est) = tracker.step() else { continue };
-        let mut pose = tracker.pose_msg(&est, header.frame_id, header.capture_time_ns);
+        let mut pose = pose_msg(tracker.model(), &est, header.frame_id, header.capture_time_ns);
         pose.publish_time_ns = monotonic_ns();
         send_pose(&poses, pose)?;
         wake_up(&waker);
@@ -102,7 +104,7 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
                 "estimator: frame {}, {processed} processed, {dropped} dropped, F {:.3}, status {}",
                 header.frame_id,
                 est.fitness.f,
-                est.status
+                wire_status(est.state).name()
             );
             report = Instant::now();
         }
@@ -112,4 +114,32 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
         skipped.summary()
     );
     Ok(())
+}
+
+/// The wire status of a tracking state.
+pub fn wire_status(state: TrackState) -> Status {
+    match state {
+        TrackState::Tracking => Status::Tracking,
+        TrackState::Searching => Status::Searching,
+        TrackState::Lost => Status::Lost,
+    }
+}
+
+/// The pose message of an estimate of `model` for frame `frame_id` (publish time not
+/// set), [sanitized](PoseMsg::sanitize): finite, unit quaternion, `lost` when it cannot be.
+pub fn pose_msg(model: &PhotoModel, est: &Estimate, frame_id: u64, capture_time_ns: u64) -> PoseMsg {
+    let b = &est.best;
+    let mut pose = PoseMsg {
+        frame_id,
+        capture_time_ns,
+        publish_time_ns: 0,
+        position_mm: b.position.into(),
+        orientation_wxyz: b.orientation_wxyz(),
+        size_mm: b.size_mm(model.l_p, model.b_p),
+        fitness: est.fitness.f,
+        generations: est.generations,
+        status: wire_status(est.state).into(),
+    };
+    pose.sanitize();
+    pose
 }

@@ -16,10 +16,10 @@ use anyhow::{anyhow, Context, Result};
 use iceoryx2::prelude::*;
 use serde::Serialize;
 
-use crate::ipc::Ipc;
-use crate::messages::{monotonic_ns, FrameHeader, PoseMsg, FRAMES_SERVICE, POSES_SERVICE};
-use crate::plot::{self, Panel, Series, PALETTE};
-use crate::stats::Samples;
+use crate::cli::report::plot::{self, Panel, Series, PALETTE};
+use crate::cli::report::stats::Samples;
+use crate::transport::ipc::Ipc;
+use crate::transport::messages::{monotonic_ns, FrameHeader, PoseMsg, FRAMES_SERVICE, POSES_SERVICE};
 
 /// Measure the latency of the running service.
 #[derive(clap::Args, Debug)]

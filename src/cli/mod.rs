@@ -9,6 +9,7 @@ pub mod estimator;
 pub mod latency;
 pub mod model;
 pub mod render;
+pub mod report;
 pub mod skips;
 
 use std::io::IsTerminal;
@@ -16,9 +17,9 @@ use std::io::IsTerminal;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::config::Config;
-use crate::frame::load_rgb;
-use crate::model::PhotoModel;
+use crate::estimator::model::PhotoModel;
 use crate::render::SceneSpec;
+use crate::vision::frame::load_rgb;
 
 /// A progress bar on an interactive terminal, hidden otherwise (logs, CI, pipes).
 pub fn progress_bar(len: u64, what: &str) -> ProgressBar {

@@ -8,8 +8,8 @@ use image::RgbImage;
 
 use crate::config::Config;
 use crate::detect::{coco, Detection};
-use crate::frame::load_rgb;
-use crate::model::{DetectionRecord, PhotoModel};
+use crate::estimator::model::{DetectionRecord, PhotoModel};
+use crate::vision::frame::load_rgb;
 
 #[derive(clap::Args, Debug)]
 pub struct ModelArgs {
@@ -98,7 +98,7 @@ pub fn run(args: &ModelArgs) -> anyhow::Result<()> {
         model.center_class
     );
     if let Some(path) = &args.overlay {
-        crate::overlay::draw_model(&photo, &model)
+        crate::cli::report::overlay::draw_model(&photo, &model)
             .save(path)
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {}", path.display());

@@ -6,7 +6,7 @@
 use std::fmt::Display;
 use std::time::{Duration, Instant};
 
-use crate::messages::FrameFault;
+use crate::transport::messages::FrameFault;
 
 /// Least time between two log lines of one reason.
 pub const LOG_EVERY: Duration = Duration::from_secs(5);

@@ -29,7 +29,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use crate::camera::{Intrinsics, StereoRig};
-pub use crate::frame::Region;
+pub use crate::vision::frame::Region;
 use rays::RayTable;
 use texture::{MipTexture, Wrap};
 

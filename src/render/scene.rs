@@ -41,9 +41,9 @@ pub enum ResolutionName {
     VGA,
 }
 
-impl From<ResolutionName> for crate::calibration::Resolution {
+impl From<ResolutionName> for crate::camera::calibration::Resolution {
     fn from(r: ResolutionName) -> Self {
-        use crate::calibration::Resolution;
+        use crate::camera::calibration::Resolution;
         match r {
             ResolutionName::R2K => Resolution::R2K,
             ResolutionName::FHD => Resolution::FHD,

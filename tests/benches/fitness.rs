@@ -9,16 +9,16 @@ use std::sync::OnceLock;
 
 use divan::counter::ItemsCount;
 use divan::{black_box, Bencher};
-use photopose::color::rgb_row_to_yuyv;
 use photopose::config::Config;
-use photopose::estimate::Prepared;
-use photopose::fitness::Fitness;
-use photopose::frame::{Region, StereoImages};
-use photopose::ga::robust::view_sample;
-use photopose::ga::{Genes, Problem};
-use photopose::lookup::{LevelLookup, LookupImage, SbsBytes};
-use photopose::messages::PixelFormat;
-use photopose::model::PhotoModel;
+use photopose::estimator::fitness::Fitness;
+use photopose::estimator::ga::robust::view_sample;
+use photopose::estimator::ga::{Genes, Problem};
+use photopose::estimator::model::PhotoModel;
+use photopose::estimator::oneshot::Prepared;
+use photopose::vision::color::rgb_row_to_yuyv;
+use photopose::vision::frame::{Region, StereoImages};
+use photopose::vision::lookup::{LevelLookup, LookupImage, SbsBytes};
+use photopose::vision::PixelFormat;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 

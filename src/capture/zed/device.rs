@@ -101,7 +101,7 @@ fn usb2_hint(offered: &[Mode], usb_speed_mbps: Option<u32>) -> String {
     let only_vga = !offered.is_empty()
         && offered
             .iter()
-            .all(|m| m.resolution == crate::calibration::Resolution::VGA);
+            .all(|m| m.resolution == crate::camera::calibration::Resolution::VGA);
     match usb_speed_mbps {
         Some(speed) if speed < 5000 => format!(
             " (the camera is on a USB 2 link, {speed} Mb/s, which carries VGA only: connect it to a USB 3 port with a USB 3 cable)"
@@ -114,7 +114,7 @@ fn usb2_hint(offered: &[Mode], usb_speed_mbps: Option<u32>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::Resolution;
+    use crate::camera::calibration::Resolution;
 
     fn not_offered(offered: Vec<Mode>, usb_speed_mbps: Option<u32>) -> String {
         DeviceError::ModeNotOffered {

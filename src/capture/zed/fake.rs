@@ -10,7 +10,7 @@ use std::time::Duration;
 use super::device::{CameraInfo, Device, DeviceError, Filled, Opener, TIMESTAMP_MONOTONIC};
 use super::discovery::{DiscoveryError, ZED_2I_PRODUCT};
 use super::{Mode, MODES};
-use crate::calibration::Resolution;
+use crate::camera::calibration::Resolution;
 
 /// What the camera does on one call to [`Device::next`].
 #[derive(Debug, Clone)]

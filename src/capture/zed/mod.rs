@@ -17,9 +17,9 @@ pub mod v4l2;
 
 use std::fmt;
 
-use crate::calibration::Resolution;
+use crate::camera::calibration::Resolution;
 use crate::capture::Geometry;
-use crate::messages::PixelFormat;
+use crate::vision::PixelFormat;
 
 /// A video mode of the ZED 2i: side-by-side YUYV at one resolution and frame rate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

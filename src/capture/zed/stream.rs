@@ -8,7 +8,7 @@ use super::device::{CameraInfo, Device, DeviceError, Opener, BUFFER_ERROR, TIMES
 use super::discovery::product_name;
 use super::Mode;
 use crate::capture::{FrameInfo, FrameSource, Geometry, SourceError};
-use crate::messages::monotonic_ns;
+use crate::transport::messages::monotonic_ns;
 
 /// How long one [`FrameSource::fill`] waits for a buffer (bounds how late a stop request
 /// is noticed).
@@ -237,7 +237,7 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::calibration::Resolution;
+    use crate::camera::calibration::Resolution;
     use crate::capture::zed::fake::{Attempt, ScriptedOpener, Step};
 
     const VGA: Mode = Mode::new(Resolution::VGA, 100);

@@ -57,7 +57,7 @@ pub fn is_chromatic(code: u8) -> bool {
 /// Distance between two OpenCV hues on the 180-step colour circle.
 ///
 /// ```
-/// use photopose::color::{hue_distance, rgb_to_hsv};
+/// use photopose::vision::color::{hue_distance, rgb_to_hsv};
 /// let (red, _, _) = rgb_to_hsv(255, 0, 10); // hue 179, just below the wrap
 /// assert_eq!(hue_distance(red, 2), 3);
 /// ```

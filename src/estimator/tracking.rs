@@ -9,18 +9,17 @@ use rand::{Rng, SeedableRng};
 
 use nalgebra::Isometry3;
 
-use crate::calibration::CalibrationError;
+use crate::camera::calibration::CalibrationError;
 use crate::camera::StereoRig;
 use crate::config::{Config, GaSettings, Mode, RobustSettings, TrackingSettings};
-use crate::estimate::{scorer_for, Prepared};
-use crate::fitness::{Fitness, PointSet, Scorer};
-use crate::frame::Region;
-use crate::ga::robust::{mutate, mutate_from_edge, Population};
-use crate::ga::{Bounds, Genes, Problem, GENES};
-use crate::lookup::{LevelLookup, SbsBytes};
-use crate::messages::{status, PoseMsg};
-use crate::model::PhotoModel;
-use crate::pose::PoseSize;
+use crate::estimator::fitness::{Fitness, PointSet, Scorer};
+use crate::estimator::ga::robust::{mutate, mutate_from_edge, Population};
+use crate::estimator::ga::{Bounds, Genes, Problem, GENES};
+use crate::estimator::model::PhotoModel;
+use crate::estimator::oneshot::{scorer_for, Prepared};
+use crate::estimator::pose::PoseSize;
+use crate::vision::frame::Region;
+use crate::vision::lookup::{LevelLookup, SbsBytes};
 
 /// The result for one frame.
 #[derive(Debug, Clone, Copy)]
@@ -30,8 +29,19 @@ pub struct Estimate {
     pub fitness: Fitness,
     /// Generations run on this frame.
     pub generations: u32,
-    /// One of [`crate::messages::status`].
-    pub status: u32,
+    /// How far the pose can be trusted.
+    pub state: TrackState,
+}
+
+/// How far a frame's pose can be trusted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrackState {
+    /// The object is tracked; the pose is current.
+    Tracking,
+    /// The fitness is low: (re)acquiring; the pose is the best guess so far.
+    Searching,
+    /// Nothing matches; the pose must not be acted on.
+    Lost,
 }
 
 /// Share of each generation's children also rescaled about one of their edges
@@ -117,37 +127,37 @@ impl Tracker {
             self.velocity = std::array::from_fn(|i| 0.5 * (best[i] - last[i]));
         }
         self.last_best = Some(best);
-        let status = self.judge(fitness.f, acquiring);
+        let state = self.judge(fitness.f, acquiring);
         Estimate {
             best: problem.bounds.decode(&best),
             fitness,
             generations: generations as u32,
-            status,
+            state,
         }
     }
 
     /// The status of a frame whose best individual scored `f` (`acquired`: by a fresh
     /// acquisition), counting the frames in a row that were not tracked.
-    fn judge(&mut self, f: f64, acquired: bool) -> u32 {
+    fn judge(&mut self, f: f64, acquired: bool) -> TrackState {
         self.best_f = if acquired { f } else { self.best_f.max(f) };
         let tracked = f >= self.settings.min_fitness && f >= self.settings.min_fitness_share * self.best_f;
         self.searching = if tracked { 0 } else { self.searching + 1 };
         // Below the floor (or NaN) the pose is never called tracked.
         if f.is_nan() || f < self.settings.lost_fitness {
-            status::LOST
+            TrackState::Lost
         } else if tracked {
-            status::TRACKING
+            TrackState::Tracking
         } else if self.searching > self.settings.lost_after_frames {
-            status::LOST
+            TrackState::Lost
         } else {
-            status::SEARCHING
+            TrackState::Searching
         }
     }
 
     /// One-shot robust search, then a population around its answer.
     fn acquire(&mut self, problem: &Problem) {
         let seed = self.rng.random();
-        let outcome = crate::ga::robust::run(
+        let outcome = crate::estimator::ga::robust::run(
             problem,
             &self.ga,
             &self.robust,
@@ -328,7 +338,7 @@ impl StreamTracker {
                     WINDOW_GROW,
                     WINDOW_MIN_PX,
                 );
-                self.scorer.refill(regions, frame, &rois);
+                regions.refill(frame, &rois, &self.scorer.texel_rule());
                 Ready::Regions
             }
             None => {
@@ -353,23 +363,9 @@ impl StreamTracker {
         })
     }
 
-    /// The pose message of an estimate for frame `frame_id` (publish time not set),
-    /// [sanitized](PoseMsg::sanitize): finite, unit quaternion, `lost` when it cannot be.
-    pub fn pose_msg(&self, est: &Estimate, frame_id: u64, capture_time_ns: u64) -> PoseMsg {
-        let b = &est.best;
-        let mut pose = PoseMsg {
-            frame_id,
-            capture_time_ns,
-            publish_time_ns: 0,
-            position_mm: b.position.into(),
-            orientation_wxyz: b.orientation_wxyz(),
-            size_mm: b.size_mm(self.model.l_p, self.model.b_p),
-            fitness: est.fitness.f,
-            generations: est.generations,
-            status: est.status,
-        };
-        pose.sanitize();
-        pose
+    /// The photo-model being tracked.
+    pub fn model(&self) -> &PhotoModel {
+        &self.model
     }
 }
 
@@ -378,14 +374,14 @@ mod tests {
     use super::*;
 
     /// The statuses `judge` gives a sequence of `(F, acquired)` with the default settings.
-    fn statuses(frames: &[(f64, bool)]) -> Vec<u32> {
+    fn statuses(frames: &[(f64, bool)]) -> Vec<TrackState> {
         let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
         frames.iter().map(|&(f, acquired)| tracker.judge(f, acquired)).collect()
     }
 
-    const T: u32 = status::TRACKING;
-    const S: u32 = status::SEARCHING;
-    const L: u32 = status::LOST;
+    const T: TrackState = TrackState::Tracking;
+    const S: TrackState = TrackState::Searching;
+    const L: TrackState = TrackState::Lost;
 
     #[test]
     fn a_fitness_well_below_the_best_since_acquisition_is_searching() {

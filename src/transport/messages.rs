@@ -3,6 +3,8 @@
 
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::vision::PixelFormat;
+
 /// Service carrying side-by-side stereo frames (`[u8]` payload, [`FrameHeader`]).
 pub const FRAMES_SERVICE: &str = "photopose/stereo_frames";
 /// Service carrying one [`PoseMsg`] per processed frame.
@@ -18,13 +20,7 @@ pub mod pixel_format {
     pub const YUYV: u32 = 1;
 }
 
-/// A frame payload's pixel format as a type.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PixelFormat {
-    Rgb8,
-    Yuyv,
-}
-
+/// The wire codes of [`PixelFormat`] (the type lives with the image data).
 impl PixelFormat {
     /// The [`pixel_format`] code in frame headers.
     pub fn code(self) -> u32 {
@@ -34,35 +30,13 @@ impl PixelFormat {
         }
     }
 
+    /// The format of a header's [`pixel_format`] code, `None` for an unknown one.
     pub fn from_code(code: u32) -> Option<Self> {
         match code {
             pixel_format::RGB8 => Some(PixelFormat::Rgb8),
             pixel_format::YUYV => Some(PixelFormat::Yuyv),
             _ => None,
         }
-    }
-
-    /// Bytes per pixel.
-    pub fn bytes_per_pixel(self) -> usize {
-        match self {
-            PixelFormat::Rgb8 => 3,
-            PixelFormat::Yuyv => 2,
-        }
-    }
-
-    /// `"RGB8"` or `"YUYV"`, as in files.
-    pub fn name(self) -> &'static str {
-        match self {
-            PixelFormat::Rgb8 => "RGB8",
-            PixelFormat::Yuyv => "YUYV",
-        }
-    }
-
-    /// Parses [`PixelFormat::name`] (case-insensitive).
-    pub fn parse(name: &str) -> Option<Self> {
-        [PixelFormat::Rgb8, PixelFormat::Yuyv]
-            .into_iter()
-            .find(|f| f.name().eq_ignore_ascii_case(name.trim()))
     }
 }
 
@@ -161,14 +135,49 @@ pub fn validate_frame(header: &FrameHeader, payload_len: usize) -> Result<PixelF
     Ok(format)
 }
 
-/// Tracking status of a [`PoseMsg`].
-pub mod status {
+/// Tracking status of a [`PoseMsg`]: its `status` field on the wire.
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Status {
     /// The object is tracked; the pose is current.
-    pub const TRACKING: u32 = 0;
+    Tracking = 0,
     /// The estimator is (re)acquiring; the pose is the best guess so far.
-    pub const SEARCHING: u32 = 1;
+    Searching = 1,
     /// Nothing matches; do not act on the pose.
-    pub const LOST: u32 = 2;
+    Lost = 2,
+}
+
+impl Status {
+    /// `"tracking"`, `"searching"` or `"lost"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Tracking => "tracking",
+            Status::Searching => "searching",
+            Status::Lost => "lost",
+        }
+    }
+}
+
+/// A `status` code that is not a [`Status`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("unknown status code {0}")]
+pub struct UnknownStatus(pub u32);
+
+impl TryFrom<u32> for Status {
+    type Error = UnknownStatus;
+
+    fn try_from(code: u32) -> Result<Self, UnknownStatus> {
+        [Status::Tracking, Status::Searching, Status::Lost]
+            .into_iter()
+            .find(|s| *s as u32 == code)
+            .ok_or(UnknownStatus(code))
+    }
+}
+
+impl From<Status> for u32 {
+    fn from(status: Status) -> u32 {
+        status as u32
+    }
 }
 
 /// One pose of the model in the hand frame (DESIGN §4, type name `PhotoposePose`).
@@ -191,7 +200,7 @@ pub struct PoseMsg {
     pub fitness: f64,
     /// GA generations run on this frame.
     pub generations: u32,
-    /// One of [`status`].
+    /// A [`Status`] code.
     pub status: u32,
 }
 
@@ -199,6 +208,11 @@ pub struct PoseMsg {
 pub const UNIT_TOLERANCE: f64 = 1e-9;
 
 impl PoseMsg {
+    /// The pose's [`Status`], or the unknown code.
+    pub fn status(&self) -> Result<Status, UnknownStatus> {
+        Status::try_from(self.status)
+    }
+
     /// Every number finite, a known status, and a unit orientation quaternion with
     /// `w ≥ 0`: the only poses photopose publishes.
     pub fn is_sound(&self) -> bool {
@@ -212,7 +226,7 @@ impl PoseMsg {
             .all(|v| v.is_finite())
             && (norm - 1.0).abs() <= UNIT_TOLERANCE
             && q[0] >= 0.0
-            && self.status <= status::LOST
+            && self.status().is_ok()
     }
 
     /// Makes the pose sound: normalises the quaternion to `w ≥ 0`. A pose with a NaN or
@@ -228,7 +242,7 @@ impl PoseMsg {
         if !self.is_sound() {
             *self = PoseMsg {
                 orientation_wxyz: [1.0, 0.0, 0.0, 0.0],
-                status: status::LOST,
+                status: Status::Lost as u32,
                 ..PoseMsg {
                     frame_id: self.frame_id,
                     capture_time_ns: self.capture_time_ns,
@@ -375,13 +389,13 @@ mod tests {
             orientation_wxyz: [-2.0, 0.0, 0.0, 0.0],
             size_mm: [100.0, 80.0],
             fitness: 1.5,
-            status: status::TRACKING,
+            status: Status::Tracking as u32,
             ..Default::default()
         };
         let mut p = good;
         p.sanitize();
         assert_eq!(p.orientation_wxyz, [1.0, 0.0, 0.0, 0.0]);
-        assert_eq!((p.status, p.position_mm), (status::TRACKING, good.position_mm));
+        assert_eq!((p.status, p.position_mm), (Status::Tracking as u32, good.position_mm));
         assert!(p.is_sound());
         let broken = [
             PoseMsg {
@@ -411,7 +425,7 @@ mod tests {
             let mut p = b;
             p.sanitize();
             assert!(p.is_sound(), "{p:?}");
-            assert_eq!(p.status, status::LOST, "{b:?}");
+            assert_eq!(p.status, Status::Lost as u32, "{b:?}");
             assert_eq!((p.frame_id, p.position_mm, p.fitness), (7, [0.0; 3], 0.0));
         }
     }

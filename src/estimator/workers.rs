@@ -46,7 +46,7 @@ impl Workers {
         let built = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("photopose-fitness-{i}"))
-            .start_handler(crate::realtime::worker_started)
+            .start_handler(crate::estimator::realtime::worker_started)
             .build();
         match built {
             Ok(pool) => {

@@ -16,7 +16,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory;
 
-use crate::messages::{FrameHeader, PoseMsg, FRAMES_SERVICE};
+use crate::transport::messages::{FrameHeader, PoseMsg, FRAMES_SERVICE};
 
 /// The shared-memory transport of this crate.
 pub type Transport = ipc::Service;
@@ -85,7 +85,7 @@ impl Ipc {
             .map_err(|e| anyhow!("cannot open {service}: {e:?}"))
     }
 
-    /// A pose service ([`crate::messages::POSES_SERVICE`] or [`crate::messages::TRUTH_SERVICE`]).
+    /// A pose service ([`crate::transport::messages::POSES_SERVICE`] or [`crate::transport::messages::TRUTH_SERVICE`]).
     pub fn poses(&self, service: &str) -> Result<PortFactory<Transport, PoseMsg, ()>> {
         self.node
             .service_builder(&Self::service_name(service)?)

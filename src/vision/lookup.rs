@@ -12,17 +12,17 @@
 use rayon::prelude::*;
 
 use crate::camera::StereoRig;
-use crate::color::{bt601, yuv_to_rgb, ColorClasses, BLACK, GRAY, WHITE};
+use crate::vision::color::{bt601, yuv_to_rgb, ColorClasses, BLACK, GRAY, WHITE};
 use image::RgbImage;
 
-use crate::frame::{coarse_levels, ColorPlane, FrameLevel, PixelColor, Region, StereoImages};
-use crate::messages::PixelFormat;
+use crate::vision::frame::{coarse_levels, ColorPlane, FrameLevel, PixelColor, Region, StereoImages};
+use crate::vision::PixelFormat;
 
 /// Colour code of a texel outside the image: it matches no model colour and, for outer
 /// points, counts as target (a mismatch), as points outside an image do.
 pub const OUTSIDE: u8 = 255;
 
-/// What the fitness reads per pixel: bits 0–7 the [`crate::color`] code (or
+/// What the fitness reads per pixel: bits 0–7 the [`crate::vision::color`] code (or
 /// [`OUTSIDE`]), bits 8–15 the second byte of the [`TexelRule`] (the saturation, or the
 /// raw OpenCV hue).
 pub type Texel = u16;
@@ -77,7 +77,7 @@ impl TexelRule {
     }
 
     /// Texels of a row of packed RGB8 pixels (`rgb.len() == 3 * out.len()`), exactly as
-    /// [`crate::color::rgb_to_hsv`] and [`TexelRule::texel`] give them one by one.
+    /// [`crate::vision::color::rgb_to_hsv`] and [`TexelRule::texel`] give them one by one.
     pub fn rgb_row(&self, rgb: &[u8], out: &mut [Texel]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -121,7 +121,7 @@ impl TexelRule {
 
     /// Texels of a row of YUYV pixels starting at an even pixel (`Y0 U Y1 V` per pair of
     /// pixels, `yuyv` holding the pairs that cover `out`), exactly as
-    /// [`crate::color::yuv_to_rgb`], [`crate::color::rgb_to_hsv`] and
+    /// [`crate::vision::color::yuv_to_rgb`], [`crate::vision::color::rgb_to_hsv`] and
     /// [`TexelRule::texel`] give them one by one, without an RGB image in between.
     pub fn yuyv_row(&self, yuyv: &[u8], out: &mut [Texel]) {
         #[cfg(target_arch = "x86_64")]
@@ -199,7 +199,7 @@ fn floor_u32(x: f32) -> u32 {
     (x.floor() + MAGIC).to_bits() - MAGIC.to_bits()
 }
 
-/// [`crate::color::rgb_to_hsv`] on `f32` channel values without branches (same results,
+/// [`crate::vision::color::rgb_to_hsv`] on `f32` channel values without branches (same results,
 /// bit for bit: the same operations in the same order, selected instead of branched).
 #[inline(always)]
 fn hsv(r: f32, g: f32, b: f32) -> (u32, u32, u32) {
@@ -425,7 +425,7 @@ impl LevelLookup {
     }
 
     /// The lookups of every pyramid level of a frame taken with `rig`, level 0 at full
-    /// resolution (see [`crate::frame::coarse_levels`]).
+    /// resolution (see [`crate::vision::frame::coarse_levels`]).
     pub fn pyramid(images: &StereoImages, rig: &StereoRig, levels: usize, rule: &TexelRule) -> Vec<Self> {
         let level = |scale: f64, im: &StereoImages| {
             let mut rig = rig.scaled(scale);
@@ -457,12 +457,19 @@ impl LevelLookup {
             right: LookupImage::with_capacity(w, h),
         }
     }
+
+    /// Refills both eyes from a frame as it arrived, converting only the pixels of each
+    /// eye's region of interest (tracking).
+    pub fn refill(&mut self, frame: &SbsBytes, rois: &[Region; 2], rule: &TexelRule) {
+        self.left.refill(frame, 0, &rois[0], rule);
+        self.right.refill(frame, 1, &rois[1], rule);
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::color::rgb_to_hsv;
+    use crate::vision::color::rgb_to_hsv;
 
     fn rule(second: SecondByte) -> TexelRule {
         TexelRule {

@@ -3,6 +3,8 @@
 //! Projection is always forward (3D point → distorted pixel), as the paper does: the
 //! images are never rectified. The inverse (pixel → ray) exists for the renderer.
 
+pub mod calibration;
+
 use nalgebra::{Isometry3, Point2, Point3, Vector3};
 
 /// Intrinsics of one camera in OpenCV convention (pixels; distortion k1 k2 p1 p2 k3).

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 
-use crate::color::{circular_mean_hue, is_chromatic, rgb_to_hsv, ColorClasses, BLACK, GRAY, WHITE};
 use crate::config::ModelSettings;
+use crate::vision::color::{circular_mean_hue, is_chromatic, rgb_to_hsv, ColorClasses, BLACK, GRAY, WHITE};
 
 /// File format tag and version written into every model file.
 pub const FORMAT: &str = "photopose-model";

@@ -7,7 +7,7 @@ use rand::{Rng, SeedableRng};
 
 use super::{rank, snapshot_generations, Genes, Outcome, Problem, Snapshot, GENES};
 use crate::config::GaSettings;
-use crate::fitness::Fitness;
+use crate::estimator::fitness::Fitness;
 
 /// Bits per gene.
 pub const BITS: u32 = 10;

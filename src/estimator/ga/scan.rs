@@ -6,7 +6,7 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 use super::{Genes, Problem};
-use crate::pose::PoseSize;
+use crate::estimator::pose::PoseSize;
 
 /// Pixel step of the position scan on the coarsest level.
 const STEP_PX: f64 = 3.0;

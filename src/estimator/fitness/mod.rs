@@ -9,14 +9,14 @@
 use nalgebra::{Isometry3, Matrix3, Point2};
 
 use crate::camera::{Intrinsics, StereoRig};
-use crate::color::is_chromatic;
 use crate::config::FitnessParams;
-use crate::frame::{FrameLevel, Region};
-use crate::lookup::{LevelLookup, LookupImage, SbsBytes, SecondByte, TexelRule};
+use crate::vision::color::is_chromatic;
+use crate::vision::frame::FrameLevel;
+use crate::vision::lookup::{LevelLookup, LookupImage, SecondByte, TexelRule};
 
 mod kernel;
-use crate::model::PhotoModel;
-use crate::pose::PoseSize;
+use crate::estimator::model::PhotoModel;
+use crate::estimator::pose::PoseSize;
 use kernel::Projection;
 
 /// How an outer point decides that it sees the target rather than background.
@@ -187,14 +187,6 @@ impl Scorer {
         LevelLookup::new(level, &self.texel_rule())
     }
 
-    /// Refills full-resolution lookup images from a frame as it arrived, converting only
-    /// the pixels of each eye's region of interest (tracking).
-    pub fn refill(&self, lookup: &mut LevelLookup, frame: &SbsBytes, rois: &[Region; 2]) {
-        let rule = self.texel_rule();
-        lookup.left.refill(frame, 0, &rois[0], &rule);
-        lookup.right.refill(frame, 1, &rois[1], &rule);
-    }
-
     /// Projections of the candidate into the left and right images, `None` when
     /// the model is seen from behind or too edge-on by either camera, or too small.
     fn placements(&self, level: &LevelLookup, c: &PoseSize) -> Option<[Projection; 2]> {
@@ -350,7 +342,7 @@ fn blocks(points: &[[f64; 2]], step: f64, stride: usize) -> Vec<(Vec<usize>, [f6
 }
 
 /// Mean colour of model points: saturation-weighted circular mean hue, mean S and V.
-fn mean_hsv<'a>(points: impl Iterator<Item = &'a crate::model::InnerPoint>) -> (u8, u8, u8) {
+fn mean_hsv<'a>(points: impl Iterator<Item = &'a crate::estimator::model::InnerPoint>) -> (u8, u8, u8) {
     let (mut cx, mut cy, mut s, mut v, mut n) = (0.0f64, 0.0f64, 0.0, 0.0, 0.0);
     for p in points {
         let a = p.h as f64 * std::f64::consts::PI / 90.0;
@@ -373,9 +365,9 @@ fn mean_hsv<'a>(points: impl Iterator<Item = &'a crate::model::InnerPoint>) -> (
 mod tests {
     use super::*;
     use crate::camera::{Intrinsics, StereoRig};
-    use crate::color::GRAY;
-    use crate::frame::{ColorPlane, PixelColor};
-    use crate::model::{InnerPoint, PixelBox};
+    use crate::estimator::model::{InnerPoint, PixelBox};
+    use crate::vision::color::GRAY;
+    use crate::vision::frame::{ColorPlane, PixelColor};
     use nalgebra::Vector3;
 
     /// A 20×20-pixel world: pinhole f = 100, identical left and right cameras

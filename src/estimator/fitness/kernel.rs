@@ -4,7 +4,7 @@
 //! compiler vectorises them: project the chunk through the camera model (pose, pinhole,
 //! Brown–Conrady distortion, in `f32`) to pixel indices, read the texels, count the
 //! matches. No branch depends on the image: a point off the image is clamped onto the
-//! ring of outside texels around it (see [`crate::lookup`]). On x86-64 CPUs with AVX2
+//! ring of outside texels around it (see [`crate::vision::lookup`]). On x86-64 CPUs with AVX2
 //! the same code is compiled a second time for 8-wide vectors and chosen at run time.
 
 use std::mem::MaybeUninit;
@@ -13,7 +13,7 @@ use nalgebra::Vector3;
 
 use super::PointSet;
 use crate::camera::Intrinsics;
-use crate::lookup::{LookupImage, OUTSIDE};
+use crate::vision::lookup::{LookupImage, OUTSIDE};
 
 /// Where a model point (photo pixels) lands in one camera for one candidate: the
 /// camera-frame axes and origin of the model (`[ax | ay | t]`, row-major) and the
@@ -341,9 +341,9 @@ fn count_chunks<const BOTH: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::color::{hue_distance, is_chromatic};
-    use crate::frame::{ColorPlane, PixelColor};
-    use crate::lookup::{texel, Texel, OUTSIDE_TEXEL};
+    use crate::vision::color::{hue_distance, is_chromatic};
+    use crate::vision::frame::{ColorPlane, PixelColor};
+    use crate::vision::lookup::{texel, Texel, OUTSIDE_TEXEL};
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
@@ -539,7 +539,7 @@ mod tests {
         let outers = [
             TOL.outer,
             OuterTest {
-                center_code: crate::color::GRAY,
+                center_code: crate::vision::color::GRAY,
                 ..TOL.outer
             },
             OuterTest {
@@ -608,7 +608,7 @@ mod tests {
                         total += 1;
                     }
                     None => assert!(
-                        got == crate::lookup::OUTSIDE_TEXEL || q.z > 0.0,
+                        got == crate::vision::lookup::OUTSIDE_TEXEL || q.z > 0.0,
                         "behind or off the image"
                     ),
                 }

@@ -3,14 +3,14 @@
 
 use serde::Serialize;
 
-use crate::calibration::CalibrationError;
+use crate::camera::calibration::CalibrationError;
 use crate::config::{Config, Mode};
-use crate::fitness::{OuterRule, PointSet, Scorer};
-use crate::frame::StereoImages;
-use crate::ga::{self, Bounds, Outcome, Problem};
-use crate::lookup::LevelLookup;
-use crate::model::PhotoModel;
-use crate::pose::PoseSize;
+use crate::estimator::fitness::{OuterRule, PointSet, Scorer};
+use crate::estimator::ga::{self, Bounds, Outcome, Problem};
+use crate::estimator::model::PhotoModel;
+use crate::estimator::pose::PoseSize;
+use crate::vision::frame::StereoImages;
+use crate::vision::lookup::LevelLookup;
 
 /// The per-frame inputs of the search, prepared once.
 pub struct Prepared {

@@ -28,8 +28,8 @@ use std::time::Duration;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
 use crate::config::ControllerSettings;
-use crate::ipc::{Ipc, PoseSubscriber};
-use crate::messages::{monotonic_ns, status, PoseMsg, POSES_SERVICE};
+use crate::transport::ipc::{Ipc, PoseSubscriber};
+use crate::transport::messages::{monotonic_ns, PoseMsg, Status, POSES_SERVICE};
 
 /// A problem of the client side.
 #[derive(Debug, thiserror::Error)]
@@ -134,10 +134,12 @@ impl Latest {
             Some(Hold::Unsound)
         } else if self.stale {
             Some(Hold::Stale)
-        } else if self.pose.status != status::TRACKING {
-            Some(Hold::NotTracking(self.pose.status))
         } else {
-            None
+            match self.pose.status() {
+                Ok(Status::Tracking) => None,
+                Ok(other) => Some(Hold::NotTracking(other)),
+                Err(_) => Some(Hold::Unsound),
+            }
         }
     }
 
@@ -146,7 +148,7 @@ impl Latest {
         self.hold().map(|h| match h {
             Hold::Unsound => "unsound pose (NaN, infinity, unknown status or non-unit quaternion)".into(),
             Hold::Stale => format!("stale pose: frame {} is {:.0} ms old", self.pose.frame_id, ms(self.age)),
-            Hold::NotTracking(s) => format!("estimator status {}", status_name(s)),
+            Hold::NotTracking(s) => format!("estimator status {}", s.name()),
         })
     }
 
@@ -170,17 +172,12 @@ pub enum Hold {
     /// Older than the deadline: the estimator or the camera has stopped.
     Stale,
     /// The estimator is searching for or has lost the object.
-    NotTracking(u32),
+    NotTracking(Status),
 }
 
-/// `"tracking"`, `"searching"`, `"lost"` or the number.
+/// `"tracking"`, `"searching"`, `"lost"` or `"unknown (N)"` for a status code.
 pub fn status_name(code: u32) -> String {
-    match code {
-        status::TRACKING => "tracking".into(),
-        status::SEARCHING => "searching".into(),
-        status::LOST => "lost".into(),
-        other => format!("unknown ({other})"),
-    }
+    Status::try_from(code).map_or_else(|e| format!("unknown ({})", e.0), |s| s.name().into())
 }
 
 fn ms(d: Duration) -> f64 {
@@ -340,24 +337,24 @@ mod tests {
     #[test]
     fn old_or_untracked_poses_are_not_usable() {
         let deadline = Duration::from_millis(100);
-        let fresh = Latest::judge(pose(3, 1_000_000_000, status::TRACKING), 1_050_000_000, deadline);
+        let fresh = Latest::judge(pose(3, 1_000_000_000, Status::Tracking as u32), 1_050_000_000, deadline);
         assert!(fresh.usable() && fresh.hold_reason().is_none());
         assert_eq!(fresh.age, Duration::from_millis(50));
-        let old = Latest::judge(pose(3, 1_000_000_000, status::TRACKING), 1_150_000_000, deadline);
+        let old = Latest::judge(pose(3, 1_000_000_000, Status::Tracking as u32), 1_150_000_000, deadline);
         assert!(old.stale && !old.usable());
         let reason = old.hold_reason().unwrap();
         assert!(reason.contains("stale") && reason.contains("150 ms"), "{reason}");
-        let lost = Latest::judge(pose(3, 1_000_000_000, status::LOST), 1_010_000_000, deadline);
+        let lost = Latest::judge(pose(3, 1_000_000_000, Status::Lost as u32), 1_010_000_000, deadline);
         assert!(!lost.usable());
         assert_eq!(lost.hold_reason().unwrap(), "estimator status lost");
         // A fresh, tracking pose with a NaN is never acted on.
-        let mut broken = pose(4, 1_000_000_000, status::TRACKING);
+        let mut broken = pose(4, 1_000_000_000, Status::Tracking as u32);
         broken.position_mm[2] = f64::NAN;
         let broken = Latest::judge(broken, 1_010_000_000, deadline);
         assert_eq!(broken.hold(), Some(Hold::Unsound));
         // A clock that appears to run backwards gives age 0, not a panic.
         assert_eq!(
-            Latest::judge(pose(1, 5, status::TRACKING), 1, deadline).age,
+            Latest::judge(pose(1, 5, Status::Tracking as u32), 1, deadline).age,
             Duration::ZERO
         );
     }

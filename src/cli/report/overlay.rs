@@ -5,10 +5,10 @@
 use image::{Rgb, RgbImage};
 
 use crate::camera::StereoRig;
-use crate::fitness::{PointSet, ProjectedPoints, Scorer};
-use crate::frame::StereoImages;
-use crate::model::PhotoModel;
-use crate::pose::PoseSize;
+use crate::estimator::fitness::{PointSet, ProjectedPoints, Scorer};
+use crate::estimator::model::PhotoModel;
+use crate::estimator::pose::PoseSize;
+use crate::vision::frame::StereoImages;
 
 const INNER: Rgb<u8> = Rgb([40, 255, 40]);
 const OUTER: Rgb<u8> = Rgb([255, 40, 255]);
@@ -118,8 +118,8 @@ fn dot(img: &mut RgbImage, x: f64, y: f64, r: i64, colour: Rgb<u8>, x0: f64, w: 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::color::ColorClasses;
     use crate::config::ModelSettings;
+    use crate::vision::color::ColorClasses;
     use std::path::Path;
 
     #[test]

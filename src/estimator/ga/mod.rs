@@ -11,11 +11,11 @@ pub mod scan;
 use nalgebra::Vector3;
 
 use crate::config::SearchSpace;
-use crate::fitness::{Fitness, PointSet, Scorer};
-use crate::lookup::LevelLookup;
-use crate::model::PhotoModel;
-use crate::pose::PoseSize;
-use crate::workers::Workers;
+use crate::estimator::fitness::{Fitness, PointSet, Scorer};
+use crate::estimator::model::PhotoModel;
+use crate::estimator::pose::PoseSize;
+use crate::estimator::workers::Workers;
+use crate::vision::lookup::LevelLookup;
 
 /// Number of genes in a chromosome.
 pub const GENES: usize = 8;
@@ -189,7 +189,7 @@ pub(crate) fn rank(fitness: &[Fitness], order: &mut Vec<usize>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{InnerPoint, PixelBox};
+    use crate::estimator::model::{InnerPoint, PixelBox};
 
     fn model() -> PhotoModel {
         PhotoModel {

@@ -1,6 +1,6 @@
 //! Stereo frames: loading side-by-side or separate images, their coarse pyramid levels,
 //! and the per-pixel colour data of the paper (one colour code, saturation and raw hue
-//! per pixel) that [`crate::lookup`] packs for the fitness.
+//! per pixel) that [`crate::vision::lookup`] packs for the fitness.
 
 use std::path::{Path, PathBuf};
 
@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use nalgebra::{Isometry3, Point3};
 
 use crate::camera::{Intrinsics, StereoRig};
-use crate::color::{rgb_to_hsv, ColorClasses};
+use crate::vision::color::{rgb_to_hsv, ColorClasses};
 
 /// A problem reading a frame.
 #[derive(Debug, thiserror::Error)]
@@ -165,7 +165,7 @@ impl Region {
 /// The colour data of one pixel, interleaved so one memory access serves a sample point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct PixelColor {
-    /// [`crate::color`] code: the hue of a chromatic pixel, or the achromatic class.
+    /// [`crate::vision::color`] code: the hue of a chromatic pixel, or the achromatic class.
     pub code: u8,
     /// Saturation.
     pub sat: u8,
@@ -320,7 +320,7 @@ mod tests {
         let p = ColorPlane::from_rgb(&img, &ColorClasses::default());
         let codes: Vec<u8> = p.px.iter().map(|c| c.code).collect();
         let hues: Vec<u8> = p.px.iter().map(|c| c.hue).collect();
-        assert_eq!(codes, vec![120, crate::color::WHITE]);
+        assert_eq!(codes, vec![120, crate::vision::color::WHITE]);
         assert_eq!(hues, vec![120, 0]);
     }
 }

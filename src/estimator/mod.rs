@@ -1,0 +1,13 @@
+//! From a photo and stereo frames to a pose and size: the photo-[`model`], a candidate
+//! [`pose`], the stereo [`fitness`], the [`ga`] that searches, the [`oneshot`] estimate of
+//! one frame and [`tracking`] across frames, on the fitness [`workers`] with the
+//! [`realtime`] options of the estimator process. Nothing here knows the wire format.
+
+pub mod fitness;
+pub mod ga;
+pub mod model;
+pub mod oneshot;
+pub mod pose;
+pub mod realtime;
+pub mod tracking;
+pub mod workers;
