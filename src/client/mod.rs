@@ -28,14 +28,16 @@ use std::time::Duration;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
 use crate::config::ControllerSettings;
-use crate::transport::ipc::{Ipc, PoseSubscriber};
+use crate::transport::ipc::{Ipc, IpcError, PoseSubscriber};
 use crate::transport::messages::{monotonic_ns, PoseMsg, Status, POSES_SERVICE};
 
 /// A problem of the client side.
 #[derive(Debug, thiserror::Error)]
 pub enum ClientError {
+    /// The pose service could not be opened or read.
     #[error("iceoryx2: {0}")]
-    Transport(String),
+    Transport(#[from] IpcError),
+    /// The robot driver refused a command.
     #[error("robot driver: {0}")]
     Driver(String),
 }
@@ -52,10 +54,8 @@ pub struct PoseClient {
 impl PoseClient {
     /// Connects as iceoryx2 node `name`; poses older than `deadline` are stale.
     pub fn connect(name: &str, deadline: Duration) -> Result<Self, ClientError> {
-        let ipc = Ipc::new(name).map_err(|e| ClientError::Transport(format!("{e:#}")))?;
-        let poses = ipc
-            .pose_subscriber(POSES_SERVICE)
-            .map_err(|e| ClientError::Transport(format!("{e:#}")))?;
+        let ipc = Ipc::new(name)?;
+        let poses = ipc.pose_subscriber(POSES_SERVICE)?;
         Ok(Self {
             ipc,
             poses,
@@ -69,11 +69,10 @@ impl PoseClient {
     /// how many arrived.
     pub fn poll(&mut self) -> Result<usize, ClientError> {
         let mut n = 0;
-        while let Some(sample) = self
-            .poses
-            .receive()
-            .map_err(|e| ClientError::Transport(format!("cannot receive a pose: {e:?}")))?
-        {
+        while let Some(sample) = self.poses.receive().map_err(|e| IpcError::Failed {
+            step: "receive a pose".into(),
+            detail: format!("{e:?}"),
+        })? {
             let pose = *sample.payload();
             // A restarted estimator starts its frame ids again: newest by capture time.
             if self.newest.is_none_or(|p| pose.capture_time_ns >= p.capture_time_ns) {

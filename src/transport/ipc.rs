@@ -8,7 +8,6 @@
 
 use std::time::Duration;
 
-use anyhow::{anyhow, Context, Result};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -17,6 +16,42 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory;
 
 use crate::transport::messages::{FrameHeader, PoseMsg, FRAMES_SERVICE};
+
+/// What went wrong with iceoryx2: the step that failed, what it concerned, and
+/// iceoryx2's own error.
+#[derive(Debug, thiserror::Error)]
+pub enum IpcError {
+    /// A node or service name iceoryx2 does not accept.
+    #[error("{kind} name {name}: {detail}")]
+    Name {
+        /// `"node"` or `"service"`.
+        kind: &'static str,
+        /// The name given.
+        name: String,
+        /// iceoryx2's error.
+        detail: String,
+    },
+    /// A step of setting up or using a node, service or port failed.
+    #[error("cannot {step}: {detail}")]
+    Failed {
+        /// What was attempted, e.g. `open photopose/poses`.
+        step: String,
+        /// iceoryx2's error.
+        detail: String,
+    },
+}
+
+impl IpcError {
+    fn failed(step: impl Into<String>, error: impl std::fmt::Debug) -> Self {
+        IpcError::Failed {
+            step: step.into(),
+            detail: format!("{error:?}"),
+        }
+    }
+}
+
+/// The result of an iceoryx2 step.
+pub type Result<T, E = IpcError> = std::result::Result<T, E>;
 
 /// The shared-memory transport of this crate.
 pub type Transport = ipc::Service;
@@ -45,12 +80,16 @@ impl Ipc {
     pub fn new(name: &str) -> Result<Self> {
         // iceoryx2's own notices (e.g. "no config file loaded") are not the user's business.
         set_log_level(LogLevel::Error);
-        let node_name = NodeName::new(name).map_err(|e| anyhow!("node name {name}: {e:?}"))?;
+        let node_name = NodeName::new(name).map_err(|e| IpcError::Name {
+            kind: "node",
+            name: name.into(),
+            detail: format!("{e:?}"),
+        })?;
         let node = NodeBuilder::new()
             .name(&node_name)
             .signal_handling_mode(SignalHandlingMode::HandleTerminationRequests)
             .create::<Transport>()
-            .map_err(|e| anyhow!("cannot create the iceoryx2 node {name}: {e:?}"))?;
+            .map_err(|e| IpcError::failed(format!("create the iceoryx2 node {name}"), e))?;
         let cleaned = node.try_cleanup_dead_nodes();
         tracing::debug!("iceoryx2 clean-up of dead nodes: {cleaned:?}");
         Ok(Self { node })
@@ -62,7 +101,11 @@ impl Ipc {
     }
 
     fn service_name(name: &str) -> Result<ServiceName> {
-        ServiceName::new(name).map_err(|e| anyhow!("service name {name}: {e:?}"))
+        ServiceName::new(name).map_err(|e| IpcError::Name {
+            kind: "service",
+            name: name.into(),
+            detail: format!("{e:?}"),
+        })
     }
 
     /// The frames service.
@@ -82,7 +125,7 @@ impl Ipc {
             .max_publishers(2)
             .max_subscribers(8)
             .open_or_create()
-            .map_err(|e| anyhow!("cannot open {service}: {e:?}"))
+            .map_err(|e| IpcError::failed(format!("open {service}"), e))
     }
 
     /// A pose service ([`crate::transport::messages::POSES_SERVICE`] or [`crate::transport::messages::TRUTH_SERVICE`]).
@@ -96,7 +139,7 @@ impl Ipc {
             .max_publishers(2)
             .max_subscribers(16)
             .open_or_create()
-            .map_err(|e| anyhow!("cannot open {service}: {e:?}"))
+            .map_err(|e| IpcError::failed(format!("open {service}"), e))
     }
 
     /// A frame publisher for side-by-side images of `bytes` bytes.
@@ -106,7 +149,7 @@ impl Ipc {
             .initial_max_slice_len(bytes)
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .create()
-            .map_err(|e| anyhow!("cannot create the frame publisher: {e:?}"))
+            .map_err(|e| IpcError::failed("create the frame publisher", e))
     }
 
     pub fn frame_subscriber(&self) -> Result<FrameSubscriber> {
@@ -114,21 +157,21 @@ impl Ipc {
             .subscriber_builder()
             .buffer_size(FRAME_BUFFER)
             .create()
-            .map_err(|e| anyhow!("cannot subscribe to {FRAMES_SERVICE}: {e:?}"))
+            .map_err(|e| IpcError::failed(format!("subscribe to {FRAMES_SERVICE}"), e))
     }
 
     pub fn pose_publisher(&self, service: &str) -> Result<PosePublisher> {
         self.poses(service)?
             .publisher_builder()
             .create()
-            .map_err(|e| anyhow!("cannot publish on {service}: {e:?}"))
+            .map_err(|e| IpcError::failed(format!("publish on {service}"), e))
     }
 
     pub fn pose_subscriber(&self, service: &str) -> Result<PoseSubscriber> {
         self.poses(service)?
             .subscriber_builder()
             .create()
-            .map_err(|e| anyhow!("cannot subscribe to {service}: {e:?}"))
+            .map_err(|e| IpcError::failed(format!("subscribe to {service}"), e))
     }
 }
 
@@ -144,7 +187,7 @@ impl Ipc {
             .max_notifiers(4)
             .max_listeners(16)
             .open_or_create()
-            .map_err(|e| anyhow!("cannot open the events of {service}: {e:?}"))
+            .map_err(|e| IpcError::failed(format!("open the events of {service}"), e))
     }
 
     /// Wakes the listeners of `service` ([`Ipc::wake`]) after each send.
@@ -152,7 +195,7 @@ impl Ipc {
         self.events(service)?
             .notifier_builder()
             .create()
-            .map_err(|e| anyhow!("cannot notify on {service}: {e:?}"))
+            .map_err(|e| IpcError::failed(format!("notify on {service}"), e))
     }
 
     /// Woken when a sample was sent on `service`.
@@ -160,7 +203,7 @@ impl Ipc {
         self.events(service)?
             .listener_builder()
             .create()
-            .map_err(|e| anyhow!("cannot listen on {service}: {e:?}"))
+            .map_err(|e| IpcError::failed(format!("listen on {service}"), e))
     }
 
     /// Sleeps until `wake` fires or `timeout` passes; false once the process was asked to
@@ -185,11 +228,10 @@ pub fn wake_up(waker: &Waker) {
 pub fn send_pose(publisher: &PosePublisher, pose: PoseMsg) -> Result<()> {
     let sample = publisher
         .loan_uninit()
-        .map_err(|e| anyhow!("cannot loan a pose sample: {e:?}"))?;
+        .map_err(|e| IpcError::failed("loan a pose sample", e))?;
     sample
         .write_payload(pose)
         .send()
-        .map_err(|e| anyhow!("cannot send a pose: {e:?}"))
-        .context("pose")?;
+        .map_err(|e| IpcError::failed("send a pose", e))?;
     Ok(())
 }
