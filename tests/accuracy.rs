@@ -1,10 +1,10 @@
 //! The accuracy suite: every rendered scene estimated in the robust (default) and the
 //! paper mode; the robust mode must reach the error bounds.
 
-use photopose::config::Mode;
 use photopose::estimator::ga::Outcome;
 use photopose::estimator::oneshot;
 use photopose::estimator::pose::rotation_error_deg;
+use photopose::estimator::settings::Mode;
 
 use crate::scenes::{self, Rendered};
 

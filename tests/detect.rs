@@ -398,7 +398,7 @@ mod with_detector {
         }
         let path = dir.join("yolov8-like.onnx");
         std::fs::write(&path, constant_network(&[1, 84, n as i64], &data)).unwrap();
-        let settings = photopose::config::DetectSettings {
+        let settings = photopose::detect::settings::DetectSettings {
             model: path.clone(),
             ..config.detect.clone()
         };
@@ -414,7 +414,7 @@ mod with_detector {
 
         let path = dir.join("not-yolo.onnx");
         std::fs::write(&path, constant_network(&[1, 10, 3], &[0.0; 30])).unwrap();
-        let settings = photopose::config::DetectSettings {
+        let settings = photopose::detect::settings::DetectSettings {
             model: path,
             ..config.detect.clone()
         };
@@ -427,7 +427,7 @@ mod with_detector {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    fn detector_with(settings: &photopose::config::DetectSettings) -> Detector {
+    fn detector_with(settings: &photopose::detect::settings::DetectSettings) -> Detector {
         Detector::new(settings).unwrap_or_else(|e| panic!("{e}"))
     }
 

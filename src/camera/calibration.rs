@@ -9,6 +9,13 @@
 //! Section names and keys are case-insensitive; `#`/`;` comments, blank lines, spaces around
 //! `=` and CRLF line endings are accepted; unknown sections and keys are ignored. A key with
 //! a resolution suffix (`TY_HD`) wins over the plain key (`TY`) for that resolution.
+//!
+//! The reader is hand-written on purpose, not an INI crate: every error names the line it
+//! is on (a generic reader hands back a map and the line is lost); ZED files in the field
+//! suffix `[STEREO]` keys with a resolution (`TY_HD`) and vary the case of keys, so keys
+//! are matched case-insensitively and a key repeated within a section is reported with
+//! both lines; and a value written with a decimal comma (`699,81`, as some locales save
+//! it) gets a hint rather than a bare "not a number". Keep it.
 
 use std::collections::HashMap;
 use std::fmt;
@@ -50,6 +57,18 @@ impl Resolution {
         Resolution::ALL.into_iter().find(|r| r.size() == (width, height))
     }
 
+    /// The resolution called `name`: `2K`, `FHD`, `HD` or `VGA`, or the ZED SDK's
+    /// `HD2K`, `HD1080`, `HD720`; case-insensitive, surrounding spaces ignored.
+    pub fn from_name(name: &str) -> Option<Resolution> {
+        match name.trim().to_ascii_uppercase().as_str() {
+            "2K" | "HD2K" => Some(Resolution::R2K),
+            "FHD" | "HD1080" => Some(Resolution::FHD),
+            "HD" | "HD720" => Some(Resolution::HD),
+            "VGA" => Some(Resolution::VGA),
+            _ => None,
+        }
+    }
+
     /// The name used in section and key suffixes: `"2K"`, `"FHD"`, `"HD"`, `"VGA"`.
     pub fn name(self) -> &'static str {
         match self {
@@ -81,42 +100,71 @@ impl fmt::Display for Resolution {
 pub enum CalibrationError {
     /// The file could not be read.
     #[error("cannot read {}: {reason}", .path.display())]
-    Read { path: PathBuf, reason: String },
+    Read {
+        /// The calibration file.
+        path: PathBuf,
+        /// Why, without the OS error number.
+        reason: String,
+    },
     /// A line is neither `key=value`, `[SECTION]`, a comment nor blank.
     #[error("{}: line {line}: expected `key=value` or `[SECTION]`, found {text:?}", .path.display())]
-    Syntax { path: PathBuf, line: usize, text: String },
+    Syntax {
+        /// The calibration file.
+        path: PathBuf,
+        /// 1-based line of the problem.
+        line: usize,
+        /// The line (its first 60 characters).
+        text: String,
+    },
     /// A calibration value does not parse as a number.
     #[error("{}: line {line}: value {value:?} for key {key} is not a number{}", .path.display(),
         if .value.contains(',') { " (the decimal separator is '.')" } else { "" })]
     NotANumber {
+        /// The calibration file.
         path: PathBuf,
+        /// 1-based line of the problem.
         line: usize,
+        /// The key as written.
         key: String,
+        /// The value as written.
         value: String,
     },
     /// A calibration value is NaN or infinite.
     #[error("{}: line {line}: value {value:?} for key {key} is not a finite number", .path.display())]
     NotFinite {
+        /// The calibration file.
         path: PathBuf,
+        /// 1-based line of the problem.
         line: usize,
+        /// The key as written.
         key: String,
+        /// The value as written.
         value: String,
     },
     /// A focal length or the baseline is zero or negative.
     #[error("{}: line {line}: value {value} for key {key} must be positive", .path.display())]
     NotPositive {
+        /// The calibration file.
         path: PathBuf,
+        /// 1-based line of the problem.
         line: usize,
+        /// The key as written.
         key: String,
+        /// The value read.
         value: f64,
     },
     /// The same key appears twice in one section.
     #[error("{}: line {line}: key {key} repeats in section [{section}] (first on line {first_line})", .path.display())]
     DuplicateKey {
+        /// The calibration file.
         path: PathBuf,
+        /// 1-based line of the problem.
         line: usize,
+        /// The key as written.
         key: String,
+        /// The section, upper-cased.
         section: String,
+        /// Where the key first appeared.
         first_line: usize,
     },
     /// No `[LEFT_CAM_*]`, `[RIGHT_CAM_*]` or `[STEREO]` section at all.
@@ -124,19 +172,28 @@ pub enum CalibrationError {
         "{}: not a ZED calibration file (no [LEFT_CAM_<res>], [RIGHT_CAM_<res>] or [STEREO] section)",
         .path.display()
     )]
-    NotCalibration { path: PathBuf },
+    NotCalibration {
+        /// The calibration file.
+        path: PathBuf,
+    },
     /// A section needed for a calibrated resolution lacks a required key.
     #[error("{}: section [{section}] lacks key {key}", .path.display())]
     MissingKey {
+        /// The calibration file.
         path: PathBuf,
+        /// The section, upper-cased.
         section: String,
+        /// The key, with the suffixed form it may take.
         key: String,
     },
     /// A section needed by the calibrated resolutions is absent.
     #[error("{}: section [{section}] is missing (needed for {needed_for})", .path.display())]
     MissingSection {
+        /// The calibration file.
         path: PathBuf,
+        /// The missing section.
         section: String,
+        /// The resolution that needs it.
         needed_for: String,
     },
     /// No resolution has both a left and a right camera section.
@@ -144,24 +201,35 @@ pub enum CalibrationError {
         "{}: no resolution is calibrated for both eyes (needs [LEFT_CAM_<res>] and [RIGHT_CAM_<res>] for one of 2K, FHD, HD, VGA)",
         .path.display()
     )]
-    NoUsableResolution { path: PathBuf },
+    NoUsableResolution {
+        /// The calibration file.
+        path: PathBuf,
+    },
     /// An image size that is none of the ZED resolutions.
     #[error(
         "{}: image size {width}x{height} per eye matches no ZED resolution (2K 2208x1242, FHD 1920x1080, HD 1280x720, VGA 672x376){hint}",
         .path.display()
     )]
     UnknownImageSize {
+        /// The calibration file.
         path: PathBuf,
+        /// Image width per eye, pixels.
         width: u32,
+        /// Image height, pixels.
         height: u32,
+        /// A hint when the size looks like a side-by-side frame, or empty.
         hint: String,
     },
     /// The requested resolution is not calibrated in this file.
     #[error("{}: no calibration for {resolution}{detail} (file has {available})", .path.display())]
     MissingResolution {
+        /// The calibration file.
         path: PathBuf,
+        /// The resolution asked for.
         resolution: Resolution,
+        /// Which camera section is missing, when one eye is calibrated, or empty.
         detail: String,
+        /// The calibrated resolutions, or "none".
         available: String,
     },
 }
@@ -227,6 +295,162 @@ fn rodrigues(v: Vector3<f64>) -> UnitQuaternion<f64> {
     UnitQuaternion::from_scaled_axis(v)
 }
 
+/// What one line of the file is.
+enum Line<'a> {
+    /// Blank or only a comment.
+    Blank,
+    /// `[NAME]`, the name upper-cased.
+    Section(String),
+    /// `key=value`, both trimmed.
+    Entry { key: &'a str, value: &'a str },
+    /// Anything else.
+    Bad,
+}
+
+impl<'a> Line<'a> {
+    fn classify(raw_line: &'a str) -> Line<'a> {
+        let content = raw_line.find(['#', ';']).map_or(raw_line, |at| &raw_line[..at]).trim();
+        if content.is_empty() {
+            return Line::Blank;
+        }
+        let header = content
+            .strip_prefix('[')
+            .and_then(|s| s.strip_suffix(']'))
+            .map(str::trim)
+            .filter(|s| !s.is_empty() && !s.contains(['[', ']']));
+        if let Some(name) = header {
+            return Line::Section(name.to_ascii_uppercase());
+        }
+        match content.split_once('=') {
+            Some((key, value)) if !key.trim().is_empty() && !content.starts_with('[') => Line::Entry {
+                key: key.trim(),
+                value: value.trim(),
+            },
+            _ => Line::Bad,
+        }
+    }
+}
+
+/// The file sorted into sections and entries.
+struct Scanned<'a> {
+    /// Section names (upper-cased) in order of first appearance.
+    sections: Vec<String>,
+    entries: Vec<Entry<'a>>,
+}
+
+/// Pass 1, syntax. A file without any calibration section is reported as such rather
+/// than by its first bad line: it is most likely not a calibration file at all.
+fn scan<'a>(text: &'a str, path: &Path) -> Result<Scanned<'a>, CalibrationError> {
+    let mut scanned = Scanned {
+        sections: Vec::new(),
+        entries: Vec::new(),
+    };
+    let mut section: Option<String> = None;
+    let mut syntax_error = None;
+    for (i, raw_line) in text.lines().enumerate() {
+        let line = i + 1;
+        match Line::classify(raw_line) {
+            Line::Blank => {}
+            Line::Section(name) => {
+                if !scanned.sections.contains(&name) {
+                    scanned.sections.push(name.clone());
+                }
+                section = Some(name);
+            }
+            Line::Entry { key, value } => scanned.entries.push(Entry {
+                section: section.clone(),
+                key: key.to_ascii_uppercase(),
+                raw_key: key,
+                value,
+                line,
+            }),
+            Line::Bad => {
+                if syntax_error.is_none() {
+                    syntax_error = Some(CalibrationError::Syntax {
+                        path: path.to_path_buf(),
+                        line,
+                        text: raw_line.trim().chars().take(60).collect(),
+                    });
+                }
+            }
+        }
+    }
+    if !scanned.sections.iter().any(|s| is_known_section(s)) {
+        return Err(CalibrationError::NotCalibration {
+            path: path.to_path_buf(),
+        });
+    }
+    match syntax_error {
+        Some(e) => Err(e),
+        None => Ok(scanned),
+    }
+}
+
+/// Numbers read from the file by (section, key), both upper-cased.
+type Values = HashMap<(String, String), Value>;
+
+/// Pass 2: the numbers of the keys photopose uses, in file order; other keys and
+/// sections are not looked at. A key may appear once per section.
+fn read_values(entries: &[Entry<'_>], path: &Path) -> Result<Values, CalibrationError> {
+    let mut values = Values::new();
+    for e in entries {
+        let Some(sec) = e.section.as_deref() else {
+            continue;
+        };
+        let used = if sec == "STEREO" {
+            is_stereo_key(&e.key)
+        } else {
+            is_known_section(sec) && INTRINSIC_KEYS.iter().any(|k| k.eq_ignore_ascii_case(&e.key))
+        };
+        if !used {
+            continue;
+        }
+        let value = e.number(path)?;
+        let slot = (sec.to_string(), e.key.clone());
+        if let Some(first) = values.get(&slot) {
+            return Err(CalibrationError::DuplicateKey {
+                path: path.to_path_buf(),
+                line: e.line,
+                key: e.raw_key.to_string(),
+                section: sec.to_string(),
+                first_line: first.line,
+            });
+        }
+        values.insert(slot, Value { value, line: e.line });
+    }
+    Ok(values)
+}
+
+impl Entry<'_> {
+    /// The value as a finite number, positive for focal lengths and the baseline.
+    fn number(&self, path: &Path) -> Result<f64, CalibrationError> {
+        let value: f64 = self.value.parse().map_err(|_| CalibrationError::NotANumber {
+            path: path.to_path_buf(),
+            line: self.line,
+            key: self.raw_key.to_string(),
+            value: self.value.to_string(),
+        })?;
+        if !value.is_finite() {
+            return Err(CalibrationError::NotFinite {
+                path: path.to_path_buf(),
+                line: self.line,
+                key: self.raw_key.to_string(),
+                value: self.value.to_string(),
+            });
+        }
+        let positive = matches!(self.key.as_str(), "FX" | "FY") || self.key.starts_with("BASELINE");
+        if positive && value <= 0.0 {
+            return Err(CalibrationError::NotPositive {
+                path: path.to_path_buf(),
+                line: self.line,
+                key: self.raw_key.to_string(),
+                value,
+            });
+        }
+        Ok(value)
+    }
+}
+
 impl Calibration {
     /// Reads and parses the calibration file at `path`.
     pub fn load(path: &Path) -> Result<Calibration, CalibrationError> {
@@ -241,112 +465,15 @@ impl Calibration {
     pub fn parse(text: &str, source: &Path) -> Result<Calibration, CalibrationError> {
         let path = source.to_path_buf();
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let scanned = scan(text, &path)?;
+        let values = read_values(&scanned.entries, &path)?;
+        Self::from_values(path, &scanned.sections, &values)
+    }
 
-        // Pass 1: syntax.
-        let mut entries = Vec::new();
-        let mut sections_seen: Vec<String> = Vec::new();
-        let mut section: Option<String> = None;
-        let mut syntax_error = None;
-        for (i, raw_line) in text.lines().enumerate() {
-            let line = i + 1;
-            let content = raw_line.find(['#', ';']).map_or(raw_line, |at| &raw_line[..at]).trim();
-            if content.is_empty() {
-                continue;
-            }
-            let header = content
-                .strip_prefix('[')
-                .and_then(|s| s.strip_suffix(']'))
-                .map(str::trim)
-                .filter(|s| !s.is_empty() && !s.contains(['[', ']']));
-            if let Some(name) = header {
-                let name = name.to_ascii_uppercase();
-                if !sections_seen.contains(&name) {
-                    sections_seen.push(name.clone());
-                }
-                section = Some(name);
-                continue;
-            }
-            match content.split_once('=') {
-                Some((key, value)) if !key.trim().is_empty() && !content.starts_with('[') => {
-                    let raw_key = key.trim();
-                    entries.push(Entry {
-                        section: section.clone(),
-                        key: raw_key.to_ascii_uppercase(),
-                        raw_key,
-                        value: value.trim(),
-                        line,
-                    });
-                }
-                _ => {
-                    if syntax_error.is_none() {
-                        syntax_error = Some(CalibrationError::Syntax {
-                            path: path.clone(),
-                            line,
-                            text: raw_line.trim().chars().take(60).collect(),
-                        });
-                    }
-                }
-            }
-        }
-        if !sections_seen.iter().any(|s| is_known_section(s)) {
-            return Err(CalibrationError::NotCalibration { path });
-        }
-        if let Some(e) = syntax_error {
-            return Err(e);
-        }
-
-        // Pass 2: numbers of the keys we use, in file order.
-        let mut values: HashMap<(String, String), Value> = HashMap::new();
-        for e in &entries {
-            let Some(sec) = e.section.as_deref() else {
-                continue;
-            };
-            let known = if sec == "STEREO" {
-                is_stereo_key(&e.key)
-            } else {
-                is_known_section(sec) && INTRINSIC_KEYS.iter().any(|k| k.eq_ignore_ascii_case(&e.key))
-            };
-            if !known {
-                continue;
-            }
-            let value: f64 = e.value.parse().map_err(|_| CalibrationError::NotANumber {
-                path: path.clone(),
-                line: e.line,
-                key: e.raw_key.to_string(),
-                value: e.value.to_string(),
-            })?;
-            if !value.is_finite() {
-                return Err(CalibrationError::NotFinite {
-                    path,
-                    line: e.line,
-                    key: e.raw_key.to_string(),
-                    value: e.value.to_string(),
-                });
-            }
-            let positive = matches!(e.key.as_str(), "FX" | "FY") || e.key.starts_with("BASELINE");
-            if positive && value <= 0.0 {
-                return Err(CalibrationError::NotPositive {
-                    path,
-                    line: e.line,
-                    key: e.raw_key.to_string(),
-                    value,
-                });
-            }
-            let slot = (sec.to_string(), e.key.clone());
-            if let Some(first) = values.get(&slot) {
-                return Err(CalibrationError::DuplicateKey {
-                    path,
-                    line: e.line,
-                    key: e.raw_key.to_string(),
-                    section: sec.to_string(),
-                    first_line: first.line,
-                });
-            }
-            values.insert(slot, Value { value, line: e.line });
-        }
-
-        // Pass 3: one rig per resolution calibrated for both eyes.
-        let has = |name: &str| sections_seen.iter().any(|s| s == name);
+    /// Pass 3: one rig per resolution calibrated for both eyes, and the missing camera
+    /// section of each resolution calibrated for one eye only.
+    fn from_values(path: PathBuf, sections: &[String], values: &Values) -> Result<Calibration, CalibrationError> {
+        let has = |name: &str| sections.iter().any(|s| s == name);
         let mut rigs: [Option<StereoRig>; 4] = Default::default();
         let mut half: [Option<String>; 4] = Default::default();
         for res in Resolution::ALL {
@@ -370,18 +497,8 @@ impl Calibration {
                     needed_for: res.name().into(),
                 });
             }
-            let reader = Reader {
-                path: &path,
-                values: &values,
-            };
-            let (width, height) = res.size();
-            rigs[res.index()] = Some(StereoRig {
-                width,
-                height,
-                left: reader.intrinsics(&left)?,
-                right: reader.intrinsics(&right)?,
-                right_from_left: reader.extrinsics(res)?,
-            });
+            let reader = Reader { path: &path, values };
+            rigs[res.index()] = Some(reader.rig(res, &left, &right)?);
         }
         if rigs.iter().all(Option::is_none) {
             return Err(CalibrationError::NoUsableResolution { path });
@@ -456,10 +573,22 @@ impl Calibration {
 /// Looks up parsed values and reports missing keys.
 struct Reader<'a> {
     path: &'a Path,
-    values: &'a HashMap<(String, String), Value>,
+    values: &'a Values,
 }
 
 impl Reader<'_> {
+    /// The rig of `res` from its camera sections `left` and `right` and `[STEREO]`.
+    fn rig(&self, res: Resolution, left: &str, right: &str) -> Result<StereoRig, CalibrationError> {
+        let (width, height) = res.size();
+        Ok(StereoRig {
+            width,
+            height,
+            left: self.intrinsics(left)?,
+            right: self.intrinsics(right)?,
+            right_from_left: self.extrinsics(res)?,
+        })
+    }
+
     fn get(&self, section: &str, key: &str) -> Option<f64> {
         self.values
             .get(&(section.to_string(), key.to_ascii_uppercase()))
@@ -659,6 +788,21 @@ mod tests {
             assert_eq!(example().rig_for_image(w, h).unwrap().width, w);
         }
         assert_eq!(Resolution::from_size(720, 1280), None);
+        for (name, res) in [
+            ("2K", Resolution::R2K),
+            ("hd2k", Resolution::R2K),
+            ("Fhd", Resolution::FHD),
+            ("HD1080", Resolution::FHD),
+            (" hd ", Resolution::HD),
+            ("HD720", Resolution::HD),
+            ("vga", Resolution::VGA),
+        ] {
+            assert_eq!(Resolution::from_name(name), Some(res), "{name}");
+        }
+        assert!(Resolution::ALL
+            .iter()
+            .all(|&r| Resolution::from_name(r.name()) == Some(r)));
+        assert_eq!(Resolution::from_name("8K"), None);
         let cal = Calibration::parse(SIMPLE, Path::new("SN12345.conf")).unwrap();
         assert_eq!(
             cal.rig_for_image(1000, 500).unwrap_err().to_string(),

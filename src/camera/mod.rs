@@ -4,6 +4,7 @@
 //! images are never rectified. The inverse (pixel → ray) exists for the renderer.
 
 pub mod calibration;
+pub mod settings;
 
 use nalgebra::{Isometry3, Point2, Point3, Vector3};
 

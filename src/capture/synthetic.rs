@@ -96,7 +96,7 @@ impl SyntheticSource {
         let spec = SceneSpec::load(scene_path).map_err(|e| SourceError::Setup(e.to_string()))?;
         let rig = config
             .calibration
-            .rig(spec.resolution.into())
+            .rig(spec.resolution)
             .map_err(|e| SourceError::Setup(e.to_string()))?;
         let scene = spec
             .build(&config.left_from_hand)

@@ -28,7 +28,7 @@ pub struct RenderArgs {
 pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let config = crate::config::Config::load(args.config.as_deref())?;
     let spec = SceneSpec::load(&args.scene)?;
-    let rig = config.calibration.rig(spec.resolution.into())?;
+    let rig = config.calibration.rig(spec.resolution)?;
     let scene = spec.build(&config.left_from_hand)?;
     let frame = render::render(&rig, &config.left_from_hand, &scene);
 
@@ -45,7 +45,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         args.output.display(),
         frame.width(),
         frame.height(),
-        spec.resolution.as_str()
+        spec.resolution
     );
     if let Some(truth) = &args.truth {
         let json = render::scene::truth_json(&spec.hand_from_model, spec.size_mm);

@@ -23,11 +23,13 @@
 //! # }
 //! ```
 
+pub mod settings;
+
 use std::time::Duration;
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
-use crate::config::ControllerSettings;
+use crate::client::settings::ControllerSettings;
 use crate::transport::ipc::{Ipc, IpcError, PoseSubscriber};
 use crate::transport::messages::{monotonic_ns, PoseMsg, Status, POSES_SERVICE};
 

@@ -15,6 +15,7 @@ pub mod letterbox;
 pub mod nms;
 #[cfg(feature = "detect")]
 mod runtime;
+pub mod settings;
 
 use std::path::{Path, PathBuf};
 

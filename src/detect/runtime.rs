@@ -13,7 +13,7 @@ use ort::value::{TensorRef, ValueType};
 
 use super::letterbox::Letterbox;
 use super::{coco, decode, postprocess, DetectError, Detections};
-use crate::config::DetectSettings;
+use crate::detect::settings::DetectSettings;
 
 /// ONNX Runtime allows one environment per process; every detector shares it.
 static ENVIRONMENT: Mutex<Option<Environment>> = Mutex::new(None);

@@ -9,5 +9,6 @@ pub mod model;
 pub mod oneshot;
 pub mod pose;
 pub mod realtime;
+pub mod settings;
 pub mod tracking;
 pub mod workers;

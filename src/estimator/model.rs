@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 
-use crate::config::ModelSettings;
+use crate::estimator::settings::ModelSettings;
 use crate::vision::color::{circular_mean_hue, is_chromatic, rgb_to_hsv, ColorClasses, BLACK, GRAY, WHITE};
 
 /// File format tag and version written into every model file.

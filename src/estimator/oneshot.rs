@@ -4,11 +4,12 @@
 use serde::Serialize;
 
 use crate::camera::calibration::CalibrationError;
-use crate::config::{Config, Mode};
+use crate::config::Config;
 use crate::estimator::fitness::{OuterRule, PointSet, Scorer};
 use crate::estimator::ga::{self, Bounds, Outcome, Problem};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::pose::PoseSize;
+use crate::estimator::settings::Mode;
 use crate::vision::frame::StereoImages;
 use crate::vision::lookup::LevelLookup;
 

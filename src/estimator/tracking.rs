@@ -11,13 +11,14 @@ use nalgebra::Isometry3;
 
 use crate::camera::calibration::CalibrationError;
 use crate::camera::StereoRig;
-use crate::config::{Config, GaSettings, Mode, RobustSettings, TrackingSettings};
+use crate::config::Config;
 use crate::estimator::fitness::{Fitness, PointSet, Scorer};
 use crate::estimator::ga::robust::{mutate, mutate_from_edge, Population};
 use crate::estimator::ga::{Bounds, Genes, Problem, GENES};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::oneshot::{scorer_for, Prepared};
 use crate::estimator::pose::PoseSize;
+use crate::estimator::settings::{GaSettings, Mode, RobustSettings, TrackingSettings};
 use crate::vision::frame::Region;
 use crate::vision::lookup::{LevelLookup, SbsBytes};
 

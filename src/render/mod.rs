@@ -34,7 +34,7 @@ use rays::RayTable;
 use texture::{MipTexture, Wrap};
 
 pub use background::Background;
-pub use scene::{ResolutionName, SceneError, SceneSpec};
+pub use scene::{SceneError, SceneSpec};
 
 /// Colour of the card's untextured back face (plain grey cardboard).
 pub const CARDBOARD: [u8; 3] = [150, 146, 138];

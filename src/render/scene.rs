@@ -30,64 +30,44 @@ use rand::{Rng, SeedableRng};
 use serde::Deserialize;
 
 use super::{Background, Card, Occluder, OccluderFill, Scene};
-
-/// Camera resolution named in a scene file (mapped to the calibration's resolution by
-/// the CLI).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ResolutionName {
-    R2K,
-    FHD,
-    HD,
-    VGA,
-}
-
-impl From<ResolutionName> for crate::camera::calibration::Resolution {
-    fn from(r: ResolutionName) -> Self {
-        use crate::camera::calibration::Resolution;
-        match r {
-            ResolutionName::R2K => Resolution::R2K,
-            ResolutionName::FHD => Resolution::FHD,
-            ResolutionName::HD => Resolution::HD,
-            ResolutionName::VGA => Resolution::VGA,
-        }
-    }
-}
-
-impl ResolutionName {
-    /// Parses `2K`/`HD2K`, `FHD`/`HD1080`, `HD`/`HD720`, `VGA` (case-insensitive).
-    pub fn parse(s: &str) -> Option<Self> {
-        match s.trim().to_ascii_uppercase().as_str() {
-            "2K" | "HD2K" => Some(Self::R2K),
-            "FHD" | "HD1080" => Some(Self::FHD),
-            "HD" | "HD720" => Some(Self::HD),
-            "VGA" => Some(Self::VGA),
-            _ => None,
-        }
-    }
-
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::R2K => "2K",
-            Self::FHD => "FHD",
-            Self::HD => "HD",
-            Self::VGA => "VGA",
-        }
-    }
-}
+use crate::camera::calibration::Resolution;
+use crate::config::toml_error;
 
 /// A scene file that cannot be used; every message is one line naming the file.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
+    /// The scene file could not be read.
     #[error("{}: cannot read scene file: {message}", path.display())]
-    Read { path: PathBuf, message: String },
+    Read {
+        /// The scene file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+    /// The scene file is not TOML, or not the keys a scene has.
     #[error("{}: {message}", path.display())]
-    Parse { path: PathBuf, message: String },
+    Parse {
+        /// The scene file.
+        path: PathBuf,
+        /// `line N, column C: ` and the parser's message.
+        message: String,
+    },
+    /// A value that cannot be rendered.
     #[error("{}: {problem}", path.display())]
-    Invalid { path: PathBuf, problem: String },
+    Invalid {
+        /// The scene file.
+        path: PathBuf,
+        /// The key and what is wrong with it.
+        problem: String,
+    },
+    /// A photo the scene names cannot be read.
     #[error("{}: cannot read photo {}: {message}", path.display(), photo.display())]
     Photo {
+        /// The scene file.
         path: PathBuf,
+        /// The photo, resolved.
         photo: PathBuf,
+        /// The decoder's message on one line.
         message: String,
     },
 }
@@ -147,19 +127,29 @@ pub const DEFAULT_BACKGROUND_MM: f64 = 1500.0;
 pub struct SceneSpec {
     /// The scene file itself (for messages).
     pub path: PathBuf,
+    /// The target photo, resolved.
     pub photo: PathBuf,
     /// `[x, y, w, h]` inside the photo.
     pub box_px: [u32; 4],
+    /// The card's pose in the hand frame.
     pub hand_from_model: Isometry3<f64>,
+    /// `[L, B]`: the card's extent along the photo's columns and rows, mm.
     pub size_mm: [f64; 2],
-    pub resolution: ResolutionName,
+    /// The camera resolution to render at (default HD).
+    pub resolution: Resolution,
+    /// Photos of the background collage, resolved.
     pub background_photos: Vec<PathBuf>,
+    /// Distance of the background wall from the left camera, mm.
     pub background_distance_mm: f64,
+    /// Seed of the collage's layout.
     pub background_seed: u64,
+    /// Standard deviation of the image noise, grey levels.
     pub noise_sigma: f64,
+    /// Factor on the card's colours.
     pub brightness: f64,
     /// Fraction of the card hidden by an occluder (0 = none).
     pub occluder_fraction: f64,
+    /// Seed of the noise and the occluder.
     pub effects_seed: u64,
 }
 
@@ -176,73 +166,20 @@ impl SceneSpec {
     /// Parses and validates scene text as if read from `path` (relative photo paths are
     /// resolved against its directory; photo headers are read to check the box).
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Self, SceneError> {
-        let invalid = |problem: String| SceneError::Invalid {
-            path: path.to_path_buf(),
-            problem,
-        };
         let raw: RawScene = toml::from_str(text).map_err(|e| SceneError::Parse {
             path: path.to_path_buf(),
             message: toml_message(text, &e),
         })?;
-        let base = path.parent().unwrap_or_else(|| Path::new(""));
-        let resolve = |p: &Path| -> PathBuf {
-            if p.is_absolute() {
-                p.to_path_buf()
-            } else {
-                base.join(p)
-            }
+        let files = SceneFiles { path };
+        let invalid = |problem: String| SceneError::Invalid {
+            path: path.to_path_buf(),
+            problem,
         };
-        let dims = |photo: &Path| -> Result<(u32, u32), SceneError> {
-            image::image_dimensions(photo).map_err(|e| SceneError::Photo {
-                path: path.to_path_buf(),
-                photo: photo.to_path_buf(),
-                message: one_line(&e.to_string()),
-            })
-        };
-
-        let photo = resolve(&raw.photo);
-        let (pw, ph) = dims(&photo)?;
-        let [bx, by, bw, bh] = raw.box_px;
-        if bw <= 0 || bh <= 0 {
-            return Err(invalid(format!(
-                "box {:?}: width and height must be positive",
-                raw.box_px
-            )));
-        }
-        if bx < 0 || by < 0 || bx + bw > pw as i64 || by + bh > ph as i64 {
-            return Err(invalid(format!(
-                "box {:?} is not inside the {pw}×{ph} photo {}",
-                raw.box_px,
-                photo.display()
-            )));
-        }
-        let box_px = [bx as u32, by as u32, bw as u32, bh as u32];
-
-        if raw.position_mm.iter().any(|v| !v.is_finite()) {
-            return Err(invalid(format!("position_mm {:?} is not finite", raw.position_mm)));
-        }
-        let rotation = match (raw.rotation_deg, raw.orientation_wxyz) {
-            (Some(_), Some(_)) => return Err(invalid("give either rotation_deg or orientation_wxyz, not both".into())),
-            (Some(e), None) => {
-                if e.iter().any(|v| !v.is_finite()) {
-                    return Err(invalid(format!("rotation_deg {e:?} is not finite")));
-                }
-                euler_xyz_deg(e)
-            }
-            (None, Some(q)) => {
-                let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-                if !n.is_finite() || (n - 1.0).abs() > 1e-3 {
-                    return Err(invalid(format!(
-                        "orientation_wxyz {q:?} is not a unit quaternion (norm {n})"
-                    )));
-                }
-                UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
-            }
-            (None, None) => UnitQuaternion::identity(),
-        };
-        let [px, py, pz] = raw.position_mm;
-        let hand_from_model = Isometry3::from_parts(Translation3::new(px, py, pz), rotation);
-
+        let photo = files.resolve(&raw.photo);
+        let photo_size = files.dimensions(&photo)?;
+        let box_px = box_inside(raw.box_px, photo_size, &photo).map_err(invalid)?;
+        let hand_from_model =
+            hand_from_model(raw.position_mm, raw.rotation_deg, raw.orientation_wxyz).map_err(invalid)?;
         if raw.size_mm.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
             return Err(invalid(format!(
                 "size_mm {:?} must be positive and finite",
@@ -250,14 +187,13 @@ impl SceneSpec {
             )));
         }
         let resolution = match raw.resolution.as_deref() {
-            None => ResolutionName::HD,
-            Some(s) => ResolutionName::parse(s)
+            None => Resolution::HD,
+            Some(s) => Resolution::from_name(s)
                 .ok_or_else(|| invalid(format!("unknown resolution {s:?} (expected 2K, FHD, HD or VGA)")))?,
         };
-
-        let background_photos: Vec<PathBuf> = raw.background.photos.iter().map(|p| resolve(p)).collect();
+        let background_photos: Vec<PathBuf> = raw.background.photos.iter().map(|p| files.resolve(p)).collect();
         for p in &background_photos {
-            dims(p)?;
+            files.dimensions(p)?;
         }
         let distance = raw.background.distance_mm.unwrap_or(DEFAULT_BACKGROUND_MM);
         if !(distance.is_finite() && distance > 0.0) {
@@ -265,26 +201,7 @@ impl SceneSpec {
                 "background.distance_mm {distance} must be positive and finite"
             )));
         }
-        let fx = &raw.effects;
-        if !(fx.noise_sigma.is_finite() && fx.noise_sigma >= 0.0) {
-            return Err(invalid(format!(
-                "effects.noise_sigma {} must be finite and >= 0",
-                fx.noise_sigma
-            )));
-        }
-        if !(fx.brightness.is_finite() && fx.brightness > 0.0) {
-            return Err(invalid(format!(
-                "effects.brightness {} must be positive and finite",
-                fx.brightness
-            )));
-        }
-        if !(fx.occluder.is_finite() && (0.0..1.0).contains(&fx.occluder)) {
-            return Err(invalid(format!(
-                "effects.occluder {} must be a fraction in [0, 1)",
-                fx.occluder
-            )));
-        }
-
+        let fx = raw.effects.validate().map_err(invalid)?;
         Ok(Self {
             path: path.to_path_buf(),
             photo,
@@ -373,6 +290,103 @@ impl SceneSpec {
     }
 }
 
+/// The files a scene file names, relative to its directory.
+struct SceneFiles<'a> {
+    /// The scene file itself.
+    path: &'a Path,
+}
+
+impl SceneFiles<'_> {
+    /// `p` as written if absolute, else relative to the scene file's directory.
+    fn resolve(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.path.parent().unwrap_or_else(|| Path::new("")).join(p)
+        }
+    }
+
+    /// A photo's `(width, height)`, read from its header.
+    fn dimensions(&self, photo: &Path) -> Result<(u32, u32), SceneError> {
+        image::image_dimensions(photo).map_err(|e| SceneError::Photo {
+            path: self.path.to_path_buf(),
+            photo: photo.to_path_buf(),
+            message: one_line(&e.to_string()),
+        })
+    }
+}
+
+/// The target box `[x, y, w, h]` if it has a size and lies inside the `(pw, ph)` photo.
+fn box_inside(box_px: [i64; 4], (pw, ph): (u32, u32), photo: &Path) -> Result<[u32; 4], String> {
+    let [bx, by, bw, bh] = box_px;
+    if bw <= 0 || bh <= 0 {
+        return Err(format!("box {box_px:?}: width and height must be positive"));
+    }
+    if bx < 0 || by < 0 || bx + bw > pw as i64 || by + bh > ph as i64 {
+        return Err(format!(
+            "box {box_px:?} is not inside the {pw}×{ph} photo {}",
+            photo.display()
+        ));
+    }
+    Ok([bx as u32, by as u32, bw as u32, bh as u32])
+}
+
+/// The card's pose in the hand frame: a finite position and at most one of Euler angles
+/// and a unit quaternion (neither: the identity).
+fn hand_from_model(
+    position_mm: [f64; 3],
+    rotation_deg: Option<[f64; 3]>,
+    orientation_wxyz: Option<[f64; 4]>,
+) -> Result<Isometry3<f64>, String> {
+    if position_mm.iter().any(|v| !v.is_finite()) {
+        return Err(format!("position_mm {position_mm:?} is not finite"));
+    }
+    let rotation = match (rotation_deg, orientation_wxyz) {
+        (Some(_), Some(_)) => return Err("give either rotation_deg or orientation_wxyz, not both".into()),
+        (Some(e), None) => {
+            if e.iter().any(|v| !v.is_finite()) {
+                return Err(format!("rotation_deg {e:?} is not finite"));
+            }
+            euler_xyz_deg(e)
+        }
+        (None, Some(q)) => {
+            let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if !n.is_finite() || (n - 1.0).abs() > 1e-3 {
+                return Err(format!("orientation_wxyz {q:?} is not a unit quaternion (norm {n})"));
+            }
+            UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
+        }
+        (None, None) => UnitQuaternion::identity(),
+    };
+    let [px, py, pz] = position_mm;
+    Ok(Isometry3::from_parts(Translation3::new(px, py, pz), rotation))
+}
+
+impl RawEffects {
+    /// These effects if they can be rendered, else the problem.
+    fn validate(self) -> Result<Self, String> {
+        if !(self.noise_sigma.is_finite() && self.noise_sigma >= 0.0) {
+            return Err(format!(
+                "effects.noise_sigma {} must be finite and >= 0",
+                self.noise_sigma
+            ));
+        }
+        if !(self.brightness.is_finite() && self.brightness > 0.0) {
+            return Err(format!(
+                "effects.brightness {} must be positive and finite",
+                self.brightness
+            ));
+        }
+        if !(self.occluder.is_finite() && (0.0..1.0).contains(&self.occluder)) {
+            return Err(format!(
+                "effects.occluder {} must be a fraction in [0, 1)",
+                self.occluder
+            ));
+        }
+        Ok(self)
+    }
+}
+
 /// Ground truth as JSON: `{"position_mm", "orientation_wxyz" (w >= 0), "size_mm", "frame": "hand"}`.
 pub fn truth_json(hand_from_model: &Isometry3<f64>, size_mm: [f64; 2]) -> serde_json::Value {
     let t = hand_from_model.translation.vector;
@@ -415,16 +429,13 @@ fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
+/// A scene file's TOML error: `line N, column C: message`, the message on one line.
 fn toml_message(text: &str, e: &toml::de::Error) -> String {
-    let msg = one_line(e.message());
-    match e.span() {
-        Some(span) => {
-            let before = &text[..span.start.min(text.len())];
-            let line = before.matches('\n').count() + 1;
-            let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-            format!("line {line}, column {col}: {msg}")
-        }
-        None => msg,
+    let error = toml_error(text, e);
+    let message = one_line(error.message);
+    match error.line_column {
+        Some((line, column)) => format!("line {line}, column {column}: {message}"),
+        None => message,
     }
 }
 
@@ -468,7 +479,7 @@ seed = 3
     fn valid_scene_parses_and_builds() {
         let s = parse(VALID).unwrap();
         assert_eq!(s.box_px, [149, 22, 279, 289]);
-        assert_eq!(s.resolution, ResolutionName::HD);
+        assert_eq!(s.resolution, Resolution::HD);
         assert_eq!(s.brightness, 1.0);
         let r = s.hand_from_model.rotation;
         let expected = euler_xyz_deg([10.0, -20.0, 5.0]);

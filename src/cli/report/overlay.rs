@@ -118,7 +118,7 @@ fn dot(img: &mut RgbImage, x: f64, y: f64, r: i64, colour: Rgb<u8>, x0: f64, w: 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::ModelSettings;
+    use crate::estimator::settings::ModelSettings;
     use crate::vision::color::ColorClasses;
     use std::path::Path;
 

@@ -9,7 +9,7 @@
 use nalgebra::{Isometry3, Matrix3, Point2};
 
 use crate::camera::{Intrinsics, StereoRig};
-use crate::config::FitnessParams;
+use crate::estimator::settings::FitnessParams;
 use crate::vision::color::is_chromatic;
 use crate::vision::frame::FrameLevel;
 use crate::vision::lookup::{LevelLookup, LookupImage, SecondByte, TexelRule};

@@ -10,10 +10,10 @@ pub mod scan;
 
 use nalgebra::Vector3;
 
-use crate::config::SearchSpace;
 use crate::estimator::fitness::{Fitness, PointSet, Scorer};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::pose::PoseSize;
+use crate::estimator::settings::SearchSpace;
 use crate::estimator::workers::Workers;
 use crate::vision::lookup::LevelLookup;
 

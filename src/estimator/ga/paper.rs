@@ -6,8 +6,8 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::{rank, snapshot_generations, Genes, Outcome, Problem, Snapshot, GENES};
-use crate::config::GaSettings;
 use crate::estimator::fitness::Fitness;
+use crate::estimator::settings::GaSettings;
 
 /// Bits per gene.
 pub const BITS: u32 = 10;

@@ -9,9 +9,9 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::{rank, snapshot_generations, Bounds, Genes, Outcome, Problem, Snapshot, GENES};
-use crate::config::{GaSettings, RobustSettings};
 use crate::estimator::fitness::Fitness;
 use crate::estimator::pose::PoseSize;
+use crate::estimator::settings::{GaSettings, RobustSettings};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// Mutation step (normalised gene units) at the start of full-resolution generations;
