@@ -16,6 +16,7 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
 use crate::camera::calibration::{Calibration, CalibrationError};
+use crate::camera::geometry::{is_unit_wxyz, wxyz_norm, FILE_UNIT_TOLERANCE};
 use crate::camera::settings::{RawCamera, RawHandEye};
 use crate::client::settings::{ControllerSettings, RawController};
 use crate::detect::settings::{DetectSettings, RawDetect};
@@ -88,11 +89,11 @@ impl InvalidSetting {
 /// length; the problem otherwise.
 pub(crate) fn unit_pose(t: [f64; 3], wxyz: [f64; 4]) -> Result<Isometry3<f64>, String> {
     let [w, x, y, z] = wxyz;
-    let q = Quaternion::new(w, x, y, z);
-    let n = q.norm();
-    if !n.is_finite() || (n - 1.0).abs() > 1e-3 {
+    if !is_unit_wxyz(wxyz, FILE_UNIT_TOLERANCE) {
+        let n = wxyz_norm(wxyz);
         return Err(format!("[{w}, {x}, {y}, {z}] is not a unit quaternion (norm {n:.4})"));
     }
+    let q = Quaternion::new(w, x, y, z);
     Ok(Isometry3::from_parts(
         Translation3::from(Vector3::new(t[0], t[1], t[2])),
         UnitQuaternion::from_quaternion(q),

@@ -1,9 +1,11 @@
 //! The tracking GA on a rendered moving target, in process: acquisition on the first
-//! frame, then one step per frame at 60 fps while the card moves at 150 mm/s.
+//! frame, then one step per frame at 60 fps while the card moves at 150 mm/s; and the
+//! same frames and seed give bit-identical poses.
 
 use std::path::Path;
 use std::time::Instant;
 
+use image::RgbImage;
 use nalgebra::{Isometry3, Translation3, Vector3};
 use photopose::camera::StereoRig;
 use photopose::capture::synthetic::SyntheticSource;
@@ -14,6 +16,7 @@ use photopose::config::Config;
 use photopose::estimator::model::PhotoModel;
 use photopose::estimator::tracking::{Estimate, StreamTracker, TrackState};
 use photopose::render::{self, Background, Card, Scene};
+use photopose::transport::messages::PoseMsg;
 use photopose::transport::messages::Status;
 use photopose::vision::lookup::SbsBytes;
 use photopose::vision::PixelFormat;
@@ -51,40 +54,53 @@ fn rocket_scene() -> (scenes::Spec, scenes::Rendered, StereoRig, Scene) {
     (spec, r, rig, scene)
 }
 
-/// Renders `scene` and runs one tracker step on it: the estimate and the step's time, ms
-/// (rendering excluded).
-fn step(tracker: &mut StreamTracker, rig: &StereoRig, r: &scenes::Rendered, scene: &Scene) -> (Estimate, f64) {
-    let sbs = render::render(rig, &r.config.left_from_hand, scene);
-    let frame = SbsBytes {
+/// A rendered side-by-side RGB image of `rig` as the tracker reads frames.
+fn sbs_frame<'a>(rig: &StereoRig, sbs: &'a RgbImage) -> SbsBytes<'a> {
+    SbsBytes {
         bytes: sbs.as_raw(),
         width: rig.width as usize,
         height: rig.height as usize,
         row_stride: sbs.width() as usize * 3,
         format: PixelFormat::Rgb8,
-    };
+    }
+}
+
+/// Renders `scene` and runs one tracker step on it: the estimate and the step's time, ms
+/// (rendering excluded).
+fn step(tracker: &mut StreamTracker, rig: &StereoRig, r: &scenes::Rendered, scene: &Scene) -> (Estimate, f64) {
+    let sbs = render::render(rig, &r.config.left_from_hand, scene);
     let start = Instant::now();
-    tracker.prepare(&frame).expect("HD frame");
+    tracker.prepare(&sbs_frame(rig, &sbs)).expect("HD frame");
     let est = tracker.step().expect("a prepared frame");
     (est, start.elapsed().as_secs_f64() * 1e3)
+}
+
+/// Frame rate and card speed of the moving-card tests.
+const FPS: f64 = 60.0;
+const SPEED_MM_S: f64 = 150.0;
+
+/// The card of `rocket_scene` at frame `i` of a pass at [`SPEED_MM_S`] filmed at
+/// [`FPS`], moving diagonally in the left-camera frame and slowly turning:
+/// `hand_from_model`.
+fn moving_card(spec: &scenes::Spec, r: &scenes::Rendered, i: usize) -> Isometry3<f64> {
+    let t = i as f64 / FPS;
+    let along = Vector3::new(0.8, 0.5, 0.33).normalize() * (SPEED_MM_S * t);
+    let left_from_model = Isometry3::from_parts(
+        Translation3::from(Vector3::from(spec.position) + along - Vector3::new(60.0, 40.0, 0.0)),
+        rotation([spec.rotation_deg[0], 0.0, 20.0 * t]),
+    );
+    r.config.left_from_hand.inverse() * left_from_model
 }
 
 /// Position error (mm) of the tracked model origin on every frame of a 150 mm/s pass.
 #[test]
 fn tracks_a_card_moving_at_150_mm_per_s() {
     let (spec, r, rig, mut scene) = rocket_scene();
-    let (fps, speed) = (60.0, 150.0);
     let frames = 40;
     let mut tracker = StreamTracker::new(r.model.clone(), r.config.clone());
     let (mut errors, mut times) = (Vec::new(), Vec::new());
     for i in 0..frames {
-        let t = i as f64 / fps;
-        // Diagonal motion in the left-camera frame, slowly turning.
-        let along = Vector3::new(0.8, 0.5, 0.33).normalize() * (speed * t);
-        let left_from_model = Isometry3::from_parts(
-            Translation3::from(Vector3::from(spec.position) + along - Vector3::new(60.0, 40.0, 0.0)),
-            rotation([spec.rotation_deg[0], 0.0, 20.0 * t]),
-        );
-        scene.card.hand_from_model = r.config.left_from_hand.inverse() * left_from_model;
+        scene.card.hand_from_model = moving_card(&spec, &r, i);
         let (est, ms) = step(&mut tracker, &rig, &r, &scene);
         times.push(ms);
         let err = (est.best.position - scene.card.hand_from_model.translation.vector).norm();
@@ -107,7 +123,7 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
     errors.sort_by(f64::total_cmp);
     let p95 = errors[(errors.len() as f64 * 0.95).ceil() as usize - 1];
     println!(
-        "tracking at {speed} mm/s: median {:.1} mm, p95 {p95:.1} mm, max {:.1} mm over {} frames",
+        "tracking at {SPEED_MM_S} mm/s: median {:.1} mm, p95 {p95:.1} mm, max {:.1} mm over {} frames",
         errors[errors.len() / 2],
         errors.last().unwrap(),
         errors.len()
@@ -209,4 +225,58 @@ fn tracking_recovers_the_whole_card_after_the_acquisition_gap() {
         );
     }
     println!("mean error 0.5 s after resuming: {}", summary.join(", "));
+}
+
+/// Every number of a pose message (frame id, capture time, generations, status, then
+/// the floats as their bit patterns): equal only when bit-identical.
+fn pose_bits(p: &PoseMsg) -> Vec<u64> {
+    let floats = p
+        .position_mm
+        .iter()
+        .chain(&p.orientation_wxyz)
+        .chain(&p.size_mm)
+        .chain([&p.fitness]);
+    [p.frame_id, p.capture_time_ns, p.generations.into(), p.status.into()]
+        .into_iter()
+        .chain(floats.map(|v| v.to_bits()))
+        .collect()
+}
+
+/// Determinism: the same rendered frames and seed through the stream tracker
+/// (acquisition, then 20 tracking frames) give bit-identical pose messages; another seed
+/// gives others.
+#[test]
+fn the_same_frames_and_seed_give_bit_identical_poses() {
+    let (spec, r, rig, mut scene) = rocket_scene();
+    let frames: Vec<RgbImage> = (0..21)
+        .map(|i| {
+            scene.card.hand_from_model = moving_card(&spec, &r, i);
+            render::render(&rig, &r.config.left_from_hand, &scene)
+        })
+        .collect();
+    let run = |seed: u64| -> Vec<Vec<u64>> {
+        let mut config = r.config.clone();
+        config.ga.seed = seed;
+        let mut tracker = StreamTracker::new(r.model.clone(), config);
+        frames
+            .iter()
+            .enumerate()
+            .map(|(i, sbs)| {
+                tracker.prepare(&sbs_frame(&rig, sbs)).expect("HD frame");
+                let est = tracker.step().expect("a prepared frame");
+                pose_bits(&pose_msg(tracker.model(), &est, i as u64, 1000 * i as u64))
+            })
+            .collect()
+    };
+    let seed = r.config.ga.seed;
+    let first = run(seed);
+    // Frame 0 acquires; the others are tracked, so both paths are compared.
+    let status = |p: &Vec<u64>| p[3];
+    assert!(
+        first[1..].iter().all(|p| status(p) == Status::Tracking as u64),
+        "{:?}",
+        first.iter().map(status).collect::<Vec<_>>()
+    );
+    assert_eq!(first, run(seed), "the same seed and frames, another result");
+    assert_ne!(first, run(seed + 1), "another seed, the same result");
 }

@@ -133,6 +133,32 @@ impl StereoRig {
     }
 }
 
+/// Rotation quaternions as files and messages write them: Hamilton `[w, x, y, z]` arrays.
+/// Everything that reads or writes one checks and normalises it here.
+pub mod geometry {
+    /// Largest deviation from 1 of the norm of a quaternion read from a file
+    /// (configuration, scenes, recorded truth), which rounds to a few decimals.
+    pub const FILE_UNIT_TOLERANCE: f64 = 1e-3;
+
+    /// The Euclidean norm of `q`.
+    pub fn wxyz_norm(q: [f64; 4]) -> f64 {
+        q.iter().map(|v| v * v).sum::<f64>().sqrt()
+    }
+
+    /// True when the norm of `q` is finite and within `tolerance` of 1.
+    pub fn is_unit_wxyz(q: [f64; 4], tolerance: f64) -> bool {
+        let norm = wxyz_norm(q);
+        norm.is_finite() && (norm - 1.0).abs() <= tolerance
+    }
+
+    /// The same rotation with `w ≥ 0` (`q` and `−q` are one rotation), the form
+    /// photopose writes.
+    pub fn w_nonnegative(q: [f64; 4]) -> [f64; 4] {
+        let sign = if q[0] < 0.0 { -1.0 } else { 1.0 };
+        q.map(|v| sign * v)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -212,5 +238,19 @@ mod tests {
         let h = half.project(&p).unwrap();
         assert!(((full.x + 0.5) * 0.5 - 0.5 - h.x).abs() < 1e-9);
         assert!(((full.y + 0.5) * 0.5 - 0.5 - h.y).abs() < 1e-9);
+    }
+
+    #[test]
+    fn quaternions_are_checked_and_written_with_w_nonnegative() {
+        use geometry::*;
+        let half = std::f64::consts::FRAC_1_SQRT_2;
+        assert!(is_unit_wxyz([half, 0.0, -half, 0.0], 1e-12));
+        assert!(is_unit_wxyz([1.0005, 0.0, 0.0, 0.0], FILE_UNIT_TOLERANCE));
+        assert!(!is_unit_wxyz([1.01, 0.0, 0.0, 0.0], FILE_UNIT_TOLERANCE));
+        assert!(!is_unit_wxyz([f64::NAN, 0.0, 0.0, 0.0], 1.0));
+        assert!(!is_unit_wxyz([f64::INFINITY, 0.0, 0.0, 0.0], 1.0));
+        assert_eq!(wxyz_norm([0.0, 3.0, 0.0, 4.0]), 5.0);
+        assert_eq!(w_nonnegative([-0.5, 0.5, -0.5, 0.5]), [0.5, -0.5, 0.5, -0.5]);
+        assert_eq!(w_nonnegative([0.5, 0.5, -0.5, 0.5]), [0.5, 0.5, -0.5, 0.5]);
     }
 }

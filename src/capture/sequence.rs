@@ -22,6 +22,7 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::{Geometry, Truth};
+use crate::camera::geometry::{is_unit_wxyz, w_nonnegative, wxyz_norm, FILE_UNIT_TOLERANCE};
 use crate::vision::PixelFormat;
 
 /// Format tag and version of `sequence.toml`.
@@ -130,19 +131,9 @@ impl FrameRecord {
             Some(t) => {
                 let p = t.hand_from_model.translation.vector;
                 let q = t.hand_from_model.rotation.into_inner();
-                let s = if q.w < 0.0 { -1.0 } else { 1.0 };
-                format!(
-                    "{},{},{},{},{},{},{},{},{}",
-                    p.x,
-                    p.y,
-                    p.z,
-                    s * q.w,
-                    s * q.i,
-                    s * q.j,
-                    s * q.k,
-                    t.size_mm[0],
-                    t.size_mm[1]
-                )
+                let [w, x, y, z] = w_nonnegative([q.w, q.i, q.j, q.k]);
+                let [length, width] = t.size_mm;
+                format!("{},{},{},{w},{x},{y},{z},{length},{width}", p.x, p.y, p.z)
             }
             None => ",,,,,,,,".into(),
         };
@@ -178,10 +169,11 @@ impl FrameRecord {
                     .filter(|x| x.is_finite())
                     .ok_or_else(|| format!("truth field {} {:?} is not a finite number", 4 + k, fields[3 + k]))?;
             }
-            let q = Quaternion::new(v[3], v[4], v[5], v[6]);
-            if (q.norm() - 1.0).abs() > 1e-3 {
-                return Err(format!("truth quaternion has norm {:.4}, not 1", q.norm()));
+            let wxyz = [v[3], v[4], v[5], v[6]];
+            if !is_unit_wxyz(wxyz, FILE_UNIT_TOLERANCE) {
+                return Err(format!("truth quaternion has norm {:.4}, not 1", wxyz_norm(wxyz)));
             }
+            let q = Quaternion::new(v[3], v[4], v[5], v[6]);
             if v[7] <= 0.0 || v[8] <= 0.0 {
                 return Err("truth size must be positive".into());
             }

@@ -12,6 +12,7 @@ use crate::vision::color::{circular_mean_hue, is_chromatic, rgb_to_hsv, ColorCla
 
 /// File format tag and version written into every model file.
 pub const FORMAT: &str = "photopose-model";
+/// The model file version this build writes and reads.
 pub const VERSION: u32 = 1;
 
 /// A problem building, reading or writing a photo-model.
@@ -44,9 +45,13 @@ pub enum ModelError {
 /// A box in photo pixels, `(x, y)` its top-left corner.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PixelBox {
+    /// Left column.
     pub x: u32,
+    /// Top row.
     pub y: u32,
+    /// Width, pixels.
     pub w: u32,
+    /// Height, pixels.
     pub h: u32,
 }
 
@@ -54,10 +59,15 @@ pub struct PixelBox {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "[f64; 5]", into = "[f64; 5]")]
 pub struct InnerPoint {
+    /// Photo pixels right of the box centre.
     pub x: f64,
+    /// Photo pixels below the box centre.
     pub y: f64,
+    /// OpenCV hue, 0–179.
     pub h: u8,
+    /// Saturation, 0–255.
     pub s: u8,
+    /// Value, 0–255.
     pub v: u8,
 }
 
@@ -105,16 +115,22 @@ pub struct DetectionRecord {
 /// The photo-model as stored on disk.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PhotoModel {
+    /// Always [`FORMAT`].
     pub format: String,
+    /// The file format's [`VERSION`].
     pub version: u32,
     /// The source photo as given to `photopose model`.
     pub photo: String,
+    /// The box sampled, photo pixels.
     #[serde(rename = "box")]
     pub bbox: PixelBox,
-    /// Model frame size `L_P × B_P`, pixels.
+    /// Model frame length `L_P` (along its x axis), pixels.
     pub l_p: f64,
+    /// Model frame width `B_P` (along its y axis), pixels.
     pub b_p: f64,
+    /// Grid step of the sampling points, pixels.
     pub step_px: f64,
+    /// Width of the outer strip, pixels.
     pub outer_width_px: f64,
     /// Mean hue `H̄_in` of the central rectangle (OpenCV units, circular mean).
     pub mean_hue: f64,
@@ -133,7 +149,10 @@ pub struct PhotoModel {
 }
 
 impl PhotoModel {
-    /// Samples `photo` inside `bbox` (`path` only names the photo in messages and the file).
+    /// Samples `photo` inside `bbox` (`[x, y, w, h]`, `(x, y)` the top-left corner;
+    /// `path` only names the photo in messages and the file): inner points on a grid
+    /// with the colour of their cell, the outer strip around the box, and the colour of
+    /// the central rectangle.
     pub fn build(
         photo: &RgbImage,
         path: &Path,
@@ -141,93 +160,20 @@ impl PhotoModel {
         settings: &ModelSettings,
         classes: &ColorClasses,
     ) -> Result<PhotoModel, ModelError> {
-        let [x, y, w, h] = bbox;
-        let (pw, ph) = photo.dimensions();
-        if x < 0 || y < 0 || w <= 0 || h <= 0 || x + w > pw as i64 || y + h > ph as i64 {
-            return Err(ModelError::BoxOutside {
-                path: path.to_path_buf(),
-                x,
-                y,
-                w,
-                h,
-                width: pw,
-                height: ph,
-            });
-        }
-        if w < 8 || h < 8 {
-            return Err(ModelError::BoxTooSmall {
-                path: path.to_path_buf(),
-                w,
-                h,
-            });
-        }
-        let (wf, hf) = (w as f64, h as f64);
-        let step = if settings.step_px > 0.0 {
-            settings.step_px
-        } else {
-            (wf * hf / settings.target_points as f64).sqrt().max(1.0)
-        };
-        let outer_width = if settings.outer_width_px > 0.0 {
-            settings.outer_width_px
-        } else {
-            0.15 * wf.min(hf)
-        };
-        let (cx, cy) = (x as f64 + wf / 2.0, y as f64 + hf / 2.0);
-        let grid = |len: f64| -> Vec<f64> {
-            let n = (len / step).floor().max(1.0) as usize;
-            let start = -(n as f64 - 1.0) * step / 2.0;
-            (0..n).map(|i| start + i as f64 * step).collect()
-        };
-        let mut inner = Vec::new();
-        for &py in &grid(hf) {
-            for &px in &grid(wf) {
-                let (r, g, b) = mean_rgb(photo, cx + px, cy + py, step);
-                let (hh, s, v) = rgb_to_hsv(r, g, b);
-                inner.push(InnerPoint {
-                    x: px,
-                    y: py,
-                    h: hh,
-                    s,
-                    v,
-                });
-            }
-        }
-        // The outer strip continues the grid beyond the box, up to `outer_width` away.
-        let (half_w, half_h) = (wf / 2.0, hf / 2.0);
-        let reach_x = ((half_w + outer_width) / step).floor() as i64;
-        let reach_y = ((half_h + outer_width) / step).floor() as i64;
-        let mut outer = Vec::new();
-        for j in -reach_y..=reach_y {
-            for i in -reach_x..=reach_x {
-                let (px, py) = (i as f64 * step, j as f64 * step);
-                let dx = px.abs() - half_w;
-                let dy = py.abs() - half_h;
-                let outside = dx > step * 0.5 || dy > step * 0.5;
-                if outside && dx <= outer_width && dy <= outer_width {
-                    outer.push([px, py]);
-                }
-            }
-        }
-        let (fx, fy) = (settings.center_fraction * half_w, settings.center_fraction * half_h);
-        let central: Vec<&InnerPoint> = inner.iter().filter(|p| p.x.abs() <= fx && p.y.abs() <= fy).collect();
-        let center: Vec<u8> = central.iter().map(|p| classes.code(p.h, p.s, p.v)).collect();
-        let chromatic_sat: Vec<f64> = central
-            .iter()
-            .filter(|p| is_chromatic(classes.code(p.h, p.s, p.v)))
-            .map(|p| p.s as f64)
-            .collect();
-        let mean_saturation = chromatic_sat.iter().sum::<f64>() / (chromatic_sat.len().max(1) as f64);
-        let (mean_hue, center_class) = center_colour(&center);
+        let pixel_box = check_box(photo, path, bbox)?;
+        let (wf, hf) = (pixel_box.w as f64, pixel_box.h as f64);
+        let (step, outer_width) = spacing(settings, wf, hf);
+        let centre = (pixel_box.x as f64 + wf / 2.0, pixel_box.y as f64 + hf / 2.0);
+        let inner = inner_points(photo, centre, (wf, hf), step);
+        let outer = outer_points((wf, hf), step, outer_width);
+        let half = (wf / 2.0, hf / 2.0);
+        let central = (settings.center_fraction * half.0, settings.center_fraction * half.1);
+        let (mean_hue, mean_saturation, center_class) = central_colour(&inner, central, classes);
         Ok(PhotoModel {
             format: FORMAT.into(),
             version: VERSION,
             photo: path.display().to_string(),
-            bbox: PixelBox {
-                x: x as u32,
-                y: y as u32,
-                w: w as u32,
-                h: h as u32,
-            },
+            bbox: pixel_box,
             l_p: wf,
             b_p: hf,
             step_px: step,
@@ -323,6 +269,115 @@ impl PhotoModel {
             _ => self.mean_hue.round() as u8 % 180,
         }
     }
+}
+
+/// The box `[x, y, w, h]` if it lies inside `photo` and is at least 8 × 8 pixels.
+fn check_box(photo: &RgbImage, path: &Path, [x, y, w, h]: [i64; 4]) -> Result<PixelBox, ModelError> {
+    let (pw, ph) = photo.dimensions();
+    if x < 0 || y < 0 || w <= 0 || h <= 0 || x + w > pw as i64 || y + h > ph as i64 {
+        return Err(ModelError::BoxOutside {
+            path: path.to_path_buf(),
+            x,
+            y,
+            w,
+            h,
+            width: pw,
+            height: ph,
+        });
+    }
+    if w < 8 || h < 8 {
+        return Err(ModelError::BoxTooSmall {
+            path: path.to_path_buf(),
+            w,
+            h,
+        });
+    }
+    Ok(PixelBox {
+        x: x as u32,
+        y: y as u32,
+        w: w as u32,
+        h: h as u32,
+    })
+}
+
+/// The grid step and the outer strip's width (photo pixels) for a `w` × `h` box: as
+/// configured, or a step that puts about `target_points` points in the box and a strip
+/// 15 % of its shorter side wide.
+fn spacing(settings: &ModelSettings, w: f64, h: f64) -> (f64, f64) {
+    let step = if settings.step_px > 0.0 {
+        settings.step_px
+    } else {
+        (w * h / settings.target_points as f64).sqrt().max(1.0)
+    };
+    let outer_width = if settings.outer_width_px > 0.0 {
+        settings.outer_width_px
+    } else {
+        0.15 * w.min(h)
+    };
+    (step, outer_width)
+}
+
+/// Grid positions every `step` along a side of length `len`, centred on 0.
+fn grid(len: f64, step: f64) -> Vec<f64> {
+    let n = (len / step).floor().max(1.0) as usize;
+    let start = -(n as f64 - 1.0) * step / 2.0;
+    (0..n).map(|i| start + i as f64 * step).collect()
+}
+
+/// The inner points of a `size` box centred on `centre` (photo pixels), row by row, each
+/// with the HSV of its grid cell's mean colour.
+fn inner_points(photo: &RgbImage, (cx, cy): (f64, f64), (w, h): (f64, f64), step: f64) -> Vec<InnerPoint> {
+    let mut inner = Vec::new();
+    for &py in &grid(h, step) {
+        for &px in &grid(w, step) {
+            let (r, g, b) = mean_rgb(photo, cx + px, cy + py, step);
+            let (hh, s, v) = rgb_to_hsv(r, g, b);
+            inner.push(InnerPoint {
+                x: px,
+                y: py,
+                h: hh,
+                s,
+                v,
+            });
+        }
+    }
+    inner
+}
+
+/// The outer strip of a `w` × `h` box: the grid continued beyond the box, up to
+/// `outer_width` away.
+fn outer_points((w, h): (f64, f64), step: f64, outer_width: f64) -> Vec<[f64; 2]> {
+    let (half_w, half_h) = (w / 2.0, h / 2.0);
+    let reach_x = ((half_w + outer_width) / step).floor() as i64;
+    let reach_y = ((half_h + outer_width) / step).floor() as i64;
+    let mut outer = Vec::new();
+    for j in -reach_y..=reach_y {
+        for i in -reach_x..=reach_x {
+            let (px, py) = (i as f64 * step, j as f64 * step);
+            let dx = px.abs() - half_w;
+            let dy = py.abs() - half_h;
+            let outside = dx > step * 0.5 || dy > step * 0.5;
+            if outside && dx <= outer_width && dy <= outer_width {
+                outer.push([px, py]);
+            }
+        }
+    }
+    outer
+}
+
+/// `H̄_in`, the mean saturation of the chromatic points and the dominant class of the
+/// inner points within `(fx, fy)` of the centre (the central rectangle).
+fn central_colour(inner: &[InnerPoint], (fx, fy): (f64, f64), classes: &ColorClasses) -> (f64, f64, &'static str) {
+    let central: Vec<&InnerPoint> = inner.iter().filter(|p| p.x.abs() <= fx && p.y.abs() <= fy).collect();
+    let center: Vec<u8> = central.iter().map(|p| classes.code(p.h, p.s, p.v)).collect();
+    let chromatic_sat: Vec<f64> = central
+        .iter()
+        .filter(|p| is_chromatic(classes.code(p.h, p.s, p.v)))
+        .map(|p| p.s as f64)
+        .collect();
+    let mean_saturation = chromatic_sat.iter().sum::<f64>() / (chromatic_sat.len().max(1) as f64);
+    let (mean_hue, center_class) = center_colour(&center);
+    (mean_hue, mean_saturation, center_class)
 }
 
 /// Mean RGB of the grid cell (`step` × `step` pixels, at least 3 × 3) centred on a photo

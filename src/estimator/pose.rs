@@ -3,6 +3,8 @@
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
+use crate::camera::geometry::w_nonnegative;
+
 /// Pose and size of a photo-model in the hand frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseSize {
@@ -63,9 +65,8 @@ impl PoseSize {
 }
 
 /// A unit quaternion as `[w, x, y, z]` with `w ≥ 0` (the contract's output form).
-pub fn wxyz(q: &UnitQuaternion<f64>) -> [f64; 4] {
-    let s = if q.w < 0.0 { -1.0 } else { 1.0 };
-    [s * q.w, s * q.i, s * q.j, s * q.k]
+fn wxyz(q: &UnitQuaternion<f64>) -> [f64; 4] {
+    w_nonnegative([q.w, q.i, q.j, q.k])
 }
 
 /// Angle between two rotations, degrees.

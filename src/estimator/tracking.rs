@@ -13,7 +13,7 @@ use crate::camera::calibration::CalibrationError;
 use crate::camera::StereoRig;
 use crate::config::Config;
 use crate::estimator::fitness::{Fitness, PointSet, Scorer};
-use crate::estimator::ga::robust::{mutate, mutate_from_edge, Population};
+use crate::estimator::ga::live::{Breeding, EdgeMoves, LivePopulation};
 use crate::estimator::ga::{Bounds, Genes, Problem, GENES};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::oneshot::{scorer_for, Prepared};
@@ -25,6 +25,7 @@ use crate::vision::lookup::{LevelLookup, SbsBytes};
 /// The result for one frame.
 #[derive(Debug, Clone, Copy)]
 pub struct Estimate {
+    /// The frame's pose and size: the best individual.
     pub best: PoseSize,
     /// Fitness of `best` at full resolution.
     pub fitness: Fitness,
@@ -46,8 +47,8 @@ pub enum TrackState {
 }
 
 /// Share of each generation's children also rescaled about one of their edges
-/// ([`mutate_from_edge`]), and the spread of that rescaling (log of the factor): a model
-/// that shrank onto part of a target that moved further than predicted grows back.
+/// ([`EdgeMoves`]), and the spread of that rescaling (log of the factor): a model that
+/// shrank onto part of a target that moved further than predicted grows back.
 const EDGE_MOVES: f64 = 0.25;
 const EDGE_STEP: f64 = 0.03;
 
@@ -58,8 +59,7 @@ pub struct Tracker {
     box_px: [f64; 2],
     ga: GaSettings,
     robust: RobustSettings,
-    pop: Population,
-    order: Vec<usize>,
+    pop: LivePopulation,
     rng: StdRng,
     /// Frames in a row not tracked (below `min_fitness`, or below `min_fitness_share` of
     /// `best_f`).
@@ -81,8 +81,7 @@ impl Tracker {
             box_px,
             ga: config.ga.clone(),
             robust: config.robust.clone(),
-            pop: Population::new(Vec::with_capacity(n)),
-            order: Vec::with_capacity(n),
+            pop: LivePopulation::with_capacity(n),
             rng: StdRng::seed_from_u64(seed),
             searching: 0,
             best_f: 0.0,
@@ -94,7 +93,7 @@ impl Tracker {
 
     /// True until the first acquisition, and after the object was lost.
     pub fn needs_acquisition(&self) -> bool {
-        self.pop.genes.is_empty() || self.searching > self.settings.lost_after_frames
+        self.pop.is_empty() || self.searching > self.settings.lost_after_frames
     }
 
     /// The genes expected on the next frame (last best moved by the estimated velocity);
@@ -118,11 +117,10 @@ impl Tracker {
             self.track(problem);
             self.settings.generations_per_frame
         };
-        let best_i = (0..self.pop.fit.len())
-            .max_by(|&a, &b| self.pop.fit[a].score.total_cmp(&self.pop.fit[b].score))
-            .unwrap_or(0);
-        let best = self.pop.genes[best_i];
-        let fitness = self.pop.fit[best_i];
+        let (best, fitness) = self
+            .pop
+            .best()
+            .expect("an acquired population holds at least its best individual");
         if let Some(last) = self.last_best {
             // Damped: a wrong prediction costs more than a missing one.
             self.velocity = std::array::from_fn(|i| 0.5 * (best[i] - last[i]));
@@ -167,15 +165,8 @@ impl Tracker {
             &mut |_| {},
         );
         let best = problem.bounds.encode(&outcome.best);
-        self.pop.genes.clear();
-        self.pop.genes.push(best);
-        while self.pop.genes.len() < self.settings.population {
-            let mut g = best;
-            mutate(&mut g, self.settings.sigma, &mut self.rng);
-            self.pop.genes.push(g);
-        }
-        self.pop.fit.resize(self.pop.genes.len(), Fitness::default());
-        problem.evaluate_batch(0, &self.pop.genes, &mut self.pop.fit);
+        let (n, sigma) = (self.settings.population, self.settings.sigma);
+        self.pop.seed_around(problem, best, n, sigma, &mut self.rng);
         self.searching = 0;
         self.last_best = None;
         self.velocity = [0.0; GENES];
@@ -183,32 +174,21 @@ impl Tracker {
 
     /// Predicts, re-scores and evolves the population on a new frame.
     fn track(&mut self, problem: &Problem) {
-        for g in self.pop.genes.iter_mut() {
-            for (v, d) in g.iter_mut().zip(self.velocity) {
-                *v = (*v + d).clamp(0.0, 1.0);
-            }
-        }
-        problem.evaluate_batch(0, &self.pop.genes, &mut self.pop.fit);
-        let keep =
-            ((self.pop.genes.len() as f64 * self.ga.survivors).round() as usize).clamp(1, self.pop.genes.len() - 1);
-        let immigrants = if self.searching > 0 {
-            self.settings.immigrants
-        } else {
-            0.0
+        self.pop.shift(problem, &self.velocity);
+        let searching = self.searching > 0;
+        let breeding = Breeding {
+            ga: &self.ga,
+            // Searching widens the mutation too.
+            sigma: self.settings.sigma * if searching { 4.0 } else { 1.0 },
+            immigrants: if searching { self.settings.immigrants } else { 0.0 },
+            edge_moves: EdgeMoves {
+                share: EDGE_MOVES,
+                step: EDGE_STEP,
+                box_px: self.box_px,
+            },
         };
-        // Searching widens the mutation too.
-        let sigma = self.settings.sigma * if self.searching > 0 { 4.0 } else { 1.0 };
-        for _ in 0..self.settings.generations_per_frame {
-            self.pop.sort(&mut self.order);
-            self.pop
-                .breed(problem, keep, &self.ga, sigma, immigrants, &mut self.rng);
-            for g in &mut self.pop.genes[keep..] {
-                if self.rng.random::<f64>() < EDGE_MOVES {
-                    mutate_from_edge(g, &problem.bounds, self.box_px, EDGE_STEP, &mut self.rng);
-                }
-            }
-            problem.evaluate_batch(0, &self.pop.genes[keep..], &mut self.pop.fit[keep..]);
-        }
+        let generations = self.settings.generations_per_frame;
+        self.pop.evolve(problem, generations, &breeding, &mut self.rng);
     }
 }
 
@@ -292,6 +272,8 @@ pub struct StreamTracker {
 }
 
 impl StreamTracker {
+    /// A tracker of `model` with the configuration's tracking settings and seed, waiting
+    /// for the first frame to acquire the object on.
     pub fn new(model: PhotoModel, config: Config) -> Self {
         let scorer = scorer_for(&model, &config);
         let bounds = Bounds::new(&config.search, &model, config.ga.mode == Mode::Robust);
@@ -401,7 +383,7 @@ mod tests {
     fn searching_too_long_is_lost_and_acquired_afresh() {
         let settings = TrackingSettings::default();
         let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
-        tracker.pop.genes.push([0.5; GENES]);
+        tracker.pop = LivePopulation::of(vec![[0.5; GENES]]);
         assert_eq!(tracker.judge(1.95, true), T);
         for _ in 0..settings.lost_after_frames {
             assert_eq!(tracker.judge(1.5, false), S);

@@ -31,6 +31,7 @@ use serde::Deserialize;
 
 use super::{Background, Card, Occluder, OccluderFill, Scene};
 use crate::camera::calibration::Resolution;
+use crate::camera::geometry::{is_unit_wxyz, w_nonnegative, wxyz_norm, FILE_UNIT_TOLERANCE};
 use crate::config::toml_error;
 
 /// A scene file that cannot be used; every message is one line naming the file.
@@ -350,9 +351,11 @@ fn hand_from_model(
             euler_xyz_deg(e)
         }
         (None, Some(q)) => {
-            let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if !n.is_finite() || (n - 1.0).abs() > 1e-3 {
-                return Err(format!("orientation_wxyz {q:?} is not a unit quaternion (norm {n})"));
+            if !is_unit_wxyz(q, FILE_UNIT_TOLERANCE) {
+                return Err(format!(
+                    "orientation_wxyz {q:?} is not a unit quaternion (norm {})",
+                    wxyz_norm(q)
+                ));
             }
             UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
         }
@@ -391,10 +394,9 @@ impl RawEffects {
 pub fn truth_json(hand_from_model: &Isometry3<f64>, size_mm: [f64; 2]) -> serde_json::Value {
     let t = hand_from_model.translation.vector;
     let q = hand_from_model.rotation.quaternion();
-    let s = if q.w < 0.0 { -1.0 } else { 1.0 };
     serde_json::json!({
         "position_mm": [t.x, t.y, t.z],
-        "orientation_wxyz": [s * q.w, s * q.i, s * q.j, s * q.k],
+        "orientation_wxyz": w_nonnegative([q.w, q.i, q.j, q.k]),
         "size_mm": size_mm,
         "frame": "hand",
     })

@@ -3,6 +3,7 @@
 
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::camera::geometry::{is_unit_wxyz, w_nonnegative, wxyz_norm};
 use crate::vision::PixelFormat;
 
 /// Service carrying side-by-side stereo frames (`[u8]` payload, [`FrameHeader`]).
@@ -217,14 +218,13 @@ impl PoseMsg {
     /// `w ≥ 0`: the only poses photopose publishes.
     pub fn is_sound(&self) -> bool {
         let q = self.orientation_wxyz;
-        let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
         self.position_mm
             .iter()
             .chain(&self.size_mm)
             .chain(&q)
             .chain([&self.fitness])
             .all(|v| v.is_finite())
-            && (norm - 1.0).abs() <= UNIT_TOLERANCE
+            && is_unit_wxyz(q, UNIT_TOLERANCE)
             && q[0] >= 0.0
             && self.status().is_ok()
     }
@@ -234,10 +234,9 @@ impl PoseMsg {
     /// becomes `lost` at the origin with the identity rotation, zero size and fitness 0.
     pub fn sanitize(&mut self) {
         let q = self.orientation_wxyz;
-        let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let norm = wxyz_norm(q);
         if norm.is_finite() && norm > 0.0 {
-            let sign = if q[0] < 0.0 { -1.0 } else { 1.0 };
-            self.orientation_wxyz = q.map(|v| sign * v / norm);
+            self.orientation_wxyz = w_nonnegative(q.map(|v| v / norm));
         }
         if !self.is_sound() {
             *self = PoseMsg {

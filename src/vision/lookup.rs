@@ -16,6 +16,7 @@ use crate::vision::color::{bt601, yuv_to_rgb, ColorClasses, BLACK, GRAY, WHITE};
 use image::RgbImage;
 
 use crate::vision::frame::{coarse_levels, ColorPlane, FrameLevel, PixelColor, Region, StereoImages};
+use crate::vision::simd::avx2_multiversion;
 use crate::vision::PixelFormat;
 
 /// Colour code of a texel outside the image: it matches no model colour and, for outer
@@ -53,7 +54,9 @@ pub enum SecondByte {
 /// How a pixel's colour becomes a texel: the Table 1 classes and the second byte.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TexelRule {
+    /// The Table 1 colour classes.
     pub classes: ColorClasses,
+    /// What the second byte holds.
     pub second: SecondByte,
 }
 
@@ -79,18 +82,7 @@ impl TexelRule {
     /// Texels of a row of packed RGB8 pixels (`rgb.len() == 3 * out.len()`), exactly as
     /// [`crate::vision::color::rgb_to_hsv`] and [`TexelRule::texel`] give them one by one.
     pub fn rgb_row(&self, rgb: &[u8], out: &mut [Texel]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, the only feature `rgb_row_avx2` is compiled for.
-            return unsafe { self.rgb_row_avx2(rgb, out) };
-        }
-        self.rgb_row_chunks(rgb, out)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn rgb_row_avx2(&self, rgb: &[u8], out: &mut [Texel]) {
-        self.rgb_row_chunks(rgb, out)
+        rgb_row_texels(self, rgb, out)
     }
 
     #[inline(always)]
@@ -124,18 +116,7 @@ impl TexelRule {
     /// [`crate::vision::color::yuv_to_rgb`], [`crate::vision::color::rgb_to_hsv`] and
     /// [`TexelRule::texel`] give them one by one, without an RGB image in between.
     pub fn yuyv_row(&self, yuyv: &[u8], out: &mut [Texel]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, the only feature `yuyv_row_avx2` is compiled for.
-            return unsafe { self.yuyv_row_avx2(yuyv, out) };
-        }
-        self.yuyv_row_chunks(yuyv, out)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn yuyv_row_avx2(&self, yuyv: &[u8], out: &mut [Texel]) {
-        self.yuyv_row_chunks(yuyv, out)
+        yuyv_row_texels(self, yuyv, out)
     }
 
     #[inline(always)]
@@ -191,6 +172,20 @@ impl TexelRule {
     }
 }
 
+avx2_multiversion! {
+    /// [`TexelRule::rgb_row_chunks`], with AVX2 where the CPU has it.
+    fn rgb_row_texels(rule: &TexelRule, rgb: &[u8], out: &mut [Texel]) {
+        rule.rgb_row_chunks(rgb, out)
+    }
+}
+
+avx2_multiversion! {
+    /// [`TexelRule::yuyv_row_chunks`], with AVX2 where the CPU has it.
+    fn yuyv_row_texels(rule: &TexelRule, yuyv: &[u8], out: &mut [Texel]) {
+        rule.yuyv_row_chunks(yuyv, out)
+    }
+}
+
 /// `floor(x)` as an integer for `0 ≤ x < 2²³`, without a saturating cast (which would
 /// keep the loop from vectorising).
 #[inline(always)]
@@ -236,11 +231,13 @@ fn hsv(r: f32, g: f32, b: f32) -> (u32, u32, u32) {
 /// [`OUTSIDE_TEXEL`]: image pixel `(u, v)` is texel `(u − origin.0 + 1, v − origin.1 + 1)`.
 #[derive(Debug, Clone)]
 pub struct LookupImage {
-    /// Padded size (region size + 2).
+    /// Padded width (region width + 2).
     pub width: usize,
+    /// Padded height (region height + 2).
     pub height: usize,
     /// Image pixel of the region's top-left corner.
     pub origin: (usize, usize),
+    /// The texels, row-major.
     pub px: Vec<Texel>,
 }
 
@@ -351,10 +348,15 @@ impl LookupImage {
 /// `row_stride` bytes, eyes of `width` pixels, RGB8 or YUYV.
 #[derive(Debug, Clone, Copy)]
 pub struct SbsBytes<'a> {
+    /// The frame's bytes, `height` rows of `row_stride` bytes.
     pub bytes: &'a [u8],
+    /// Width of one eye, pixels.
     pub width: usize,
+    /// Height, pixels.
     pub height: usize,
+    /// Bytes from one row to the next.
     pub row_stride: usize,
+    /// How the pixels are encoded.
     pub format: PixelFormat,
 }
 
@@ -408,8 +410,11 @@ impl SbsBytes<'_> {
 pub struct LevelLookup {
     /// Image scale relative to full resolution (1, 1/2, 1/4, …).
     pub scale: f64,
+    /// The rig at this level's scale.
     pub rig: StereoRig,
+    /// The left camera's lookup image.
     pub left: LookupImage,
+    /// The right camera's lookup image.
     pub right: LookupImage,
 }
 

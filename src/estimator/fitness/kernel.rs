@@ -14,6 +14,7 @@ use nalgebra::Vector3;
 use super::PointSet;
 use crate::camera::Intrinsics;
 use crate::vision::lookup::{LookupImage, OUTSIDE};
+use crate::vision::simd::avx2_multiversion;
 
 /// Where a model point (photo pixels) lands in one camera for one candidate: the
 /// camera-frame axes and origin of the model (`[ax | ay | t]`, row-major) and the
@@ -132,10 +133,15 @@ impl Chunk {
 /// right one; and the outer points' test.
 #[derive(Debug, Clone, Copy)]
 pub struct Tolerances {
+    /// Largest hue gap of a chromatic match (OpenCV hue units).
     pub hue: u8,
+    /// Largest saturation gap of a chromatic match.
     pub sat: u8,
+    /// Largest left–right hue gap of a confirmed point.
     pub stereo_hue: u8,
+    /// Largest left–right saturation gap of a confirmed point.
     pub stereo_sat: u8,
+    /// The outer points' test.
     pub outer: OuterTest,
 }
 
@@ -145,14 +151,16 @@ pub struct OuterTest {
     /// The paper's test on the raw hue (the texels' second byte) instead of robust
     /// mode's colour-class test.
     pub raw_hue: bool,
-    /// `H̄_in` as an OpenCV hue, and the hue threshold.
+    /// `H̄_in` as an OpenCV hue.
     pub mean_hue: u8,
+    /// The hue threshold around `mean_hue`.
     pub threshold: u8,
-    /// The central rectangle's colour code and mean saturation, and the saturation
-    /// tolerance: a chromatic centre matches a chromatic pixel of near hue and
-    /// saturation, an achromatic one a pixel of its class.
+    /// The central rectangle's colour code: a chromatic centre matches a chromatic
+    /// pixel of near hue and saturation, an achromatic one a pixel of its class.
     pub center_code: u8,
+    /// The central rectangle's mean saturation.
     pub center_sat: u8,
+    /// Largest saturation gap of a pixel that matches a chromatic centre.
     pub sat_tolerance: u8,
 }
 
@@ -245,29 +253,16 @@ pub fn count(points: &PointSet, images: [&LookupImage; 2], projections: [&Projec
     dispatch::<true>(points, images, projections, tol)
 }
 
-fn dispatch<const BOTH: bool>(
-    points: &PointSet,
-    images: [&LookupImage; 2],
-    projections: [&Projection; 2],
-    tol: &Tolerances,
-) -> Counts {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2, the only feature `count_avx2` is compiled for.
-        return unsafe { count_avx2::<BOTH>(points, images, projections, tol) };
+avx2_multiversion! {
+    /// [`count_chunks`], with AVX2 where the CPU has it.
+    fn dispatch<const BOTH: bool>(
+        points: &PointSet,
+        images: [&LookupImage; 2],
+        projections: [&Projection; 2],
+        tol: &Tolerances,
+    ) -> Counts {
+        count_chunks::<BOTH>(points, images, projections, tol)
     }
-    count_chunks::<BOTH>(points, images, projections, tol)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn count_avx2<const BOTH: bool>(
-    points: &PointSet,
-    images: [&LookupImage; 2],
-    projections: [&Projection; 2],
-    tol: &Tolerances,
-) -> Counts {
-    count_chunks::<BOTH>(points, images, projections, tol)
 }
 
 /// The counts; with `BOTH` false only the left image is read and counted (the right

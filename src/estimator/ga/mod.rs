@@ -1,9 +1,11 @@
 //! The genetic algorithm over Φ = (x, y, z, ε1, ε2, ε3, α, k) (paper §4).
 //!
 //! Genes live in `[0, 1]` and are decoded through the [`Bounds`] of the search space.
-//! [`paper`] is the literal binary GA; [`robust`] the default coarse-to-fine search.
-//! Both evaluate only new individuals, in parallel, from a seeded RNG.
+//! [`paper`] is the literal binary GA; [`robust`] the default coarse-to-fine search,
+//! seeded by the exhaustive [`scan`]. Both evaluate only new individuals, in parallel,
+//! from a seeded RNG. Tracking keeps a [`live::LivePopulation`] from frame to frame.
 
+pub mod live;
 pub mod paper;
 pub mod robust;
 pub mod scan;
@@ -26,13 +28,17 @@ pub type Genes = [f64; GENES];
 /// size range (`α = L_P / L`), k from the aspect range.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bounds {
+    /// The values of genes at 0.
     pub lo: Genes,
+    /// The values of genes at 1.
     pub hi: Genes,
     /// Decode α geometrically (uniform in log size) instead of linearly.
     pub log_alpha: bool,
 }
 
 impl Bounds {
+    /// The bounds of `search` for `model` (α from its length `L_P` and the size range);
+    /// `log_alpha` as in [`Bounds::log_alpha`].
     pub fn new(search: &SearchSpace, model: &PhotoModel, log_alpha: bool) -> Self {
         let alpha = [model.l_p / search.size_mm[1], model.l_p / search.size_mm[0]];
         let lo = [
@@ -58,6 +64,7 @@ impl Bounds {
         Self { lo, hi, log_alpha }
     }
 
+    /// The pose and size that genes `g` stand for.
     pub fn decode(&self, g: &Genes) -> PoseSize {
         let lin = |i: usize| self.lo[i] + g[i] * (self.hi[i] - self.lo[i]);
         let alpha = if self.log_alpha {
@@ -101,16 +108,20 @@ impl Bounds {
 /// One frame's search problem: the scorer, the frame's lookup images at every pyramid
 /// level and the model's points at each level.
 pub struct Problem<'a> {
+    /// The fitness of the model.
     pub scorer: &'a Scorer,
     /// Level 0 at full resolution.
     pub levels: &'a [LevelLookup],
     /// Points used on each pyramid level (coarser levels use a sub-grid).
     pub points: &'a [PointSet],
+    /// The search space.
     pub bounds: Bounds,
+    /// The threads that evaluate candidates.
     pub workers: Workers,
 }
 
 impl<'a> Problem<'a> {
+    /// The problem, evaluated on `threads` threads (0: one per core).
     pub fn new(
         scorer: &'a Scorer,
         levels: &'a [LevelLookup],
@@ -156,7 +167,9 @@ pub fn level_points(model: &PhotoModel, scorer: &Scorer, levels: usize, thin: bo
 /// The best individual at one generation (for the paper's Table 2).
 #[derive(Debug, Clone, Copy)]
 pub struct Snapshot {
+    /// Generations run when it was taken.
     pub generation: usize,
+    /// The best individual's pose and size.
     pub best: PoseSize,
     /// Fitness at full resolution.
     pub fitness: Fitness,
@@ -165,10 +178,15 @@ pub struct Snapshot {
 /// Result of a one-shot estimate.
 #[derive(Debug, Clone)]
 pub struct Outcome {
+    /// The estimate: the best individual's pose and size.
     pub best: PoseSize,
+    /// Its fitness at full resolution.
     pub fitness: Fitness,
+    /// Generations run.
     pub generations: usize,
+    /// Candidates evaluated, on any pyramid level.
     pub evaluations: usize,
+    /// The best individual at each of the [`snapshot_generations`].
     pub snapshots: Vec<Snapshot>,
 }
 
@@ -177,6 +195,31 @@ pub fn snapshot_generations(total: usize) -> Vec<usize> {
     let mut v: Vec<usize> = [100, 500].into_iter().filter(|&g| g < total).collect();
     v.push(total);
     v
+}
+
+/// Which of several equally scored individuals [`best_index`] takes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ties {
+    /// The first: in a population sorted best first, a survivor over a child that only
+    /// equals it (the robust search).
+    First,
+    /// The last, as [`Iterator::max_by`] takes it: a child over the survivor it equals
+    /// (the paper's GA and tracking). Each search keeps the rule it was tuned with, so
+    /// that a seed gives the results it always gave.
+    Last,
+}
+
+/// Index of the highest [`Fitness::score`] (compared with [`f64::total_cmp`]), of equal
+/// ones the one `ties` names; 0 for no individuals.
+pub fn best_index(fitness: &[Fitness], ties: Ties) -> usize {
+    let mut best = 0;
+    for (i, f) in fitness.iter().enumerate().skip(1) {
+        let order = f.score.total_cmp(&fitness[best].score);
+        if order.is_gt() || (ties == Ties::Last && order.is_eq()) {
+            best = i;
+        }
+    }
+    best
 }
 
 /// Indices of `fitness` sorted best first (NaN-safe).
@@ -219,6 +262,30 @@ mod tests {
             outer: vec![],
             detection: None,
         }
+    }
+
+    #[test]
+    fn best_index_takes_the_highest_score_and_breaks_ties_as_told() {
+        let fit = |scores: &[f64]| -> Vec<Fitness> {
+            scores
+                .iter()
+                .map(|&score| Fitness {
+                    score,
+                    ..Fitness::default()
+                })
+                .collect()
+        };
+        let scores = fit(&[0.5, 1.5, 0.2, 1.5, 1.0]);
+        assert_eq!(best_index(&scores, Ties::First), 1);
+        assert_eq!(best_index(&scores, Ties::Last), 3);
+        assert_eq!(best_index(&fit(&[2.0, 1.0]), Ties::Last), 0);
+        assert_eq!(best_index(&[], Ties::First), 0);
+        // The same choice as the best-first order of `rank`, and as `Iterator::max_by`.
+        let mut order = Vec::new();
+        rank(&scores, &mut order);
+        assert_eq!(order[0], best_index(&scores, Ties::First));
+        let last = (0..scores.len()).max_by(|&a, &b| scores[a].score.total_cmp(&scores[b].score));
+        assert_eq!(last, Some(best_index(&scores, Ties::Last)));
     }
 
     #[test]

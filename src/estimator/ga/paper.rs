@@ -5,7 +5,7 @@
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::{rank, snapshot_generations, Genes, Outcome, Problem, Snapshot, GENES};
+use super::{best_index, rank, snapshot_generations, Genes, Outcome, Problem, Snapshot, Ties, GENES};
 use crate::estimator::fitness::Fitness;
 use crate::estimator::settings::GaSettings;
 
@@ -92,9 +92,7 @@ pub fn run(
         problem.evaluate_batch(0, &gen_buf, &mut fit[keep..]);
         evaluations += n - keep;
         if marks.contains(&generation) {
-            let best = (0..n)
-                .max_by(|&a, &b| fit[a].score.total_cmp(&fit[b].score))
-                .unwrap_or(0);
+            let best = best_index(&fit, Ties::Last);
             snapshots.push(Snapshot {
                 generation,
                 best: problem.bounds.decode(&genes(&pop[best])),
@@ -103,9 +101,7 @@ pub fn run(
         }
         progress(generation);
     }
-    let best = (0..n)
-        .max_by(|&a, &b| fit[a].score.total_cmp(&fit[b].score))
-        .unwrap_or(0);
+    let best = best_index(&fit, Ties::Last);
     Outcome {
         best: problem.bounds.decode(&genes(&pop[best])),
         fitness: fit[best],

@@ -7,8 +7,9 @@
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
+use std::time::Instant;
 
-use super::{rank, snapshot_generations, Bounds, Genes, Outcome, Problem, Snapshot, GENES};
+use super::{best_index, rank, snapshot_generations, Bounds, Genes, Outcome, Problem, Snapshot, Ties, GENES};
 use crate::estimator::fitness::Fitness;
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::{GaSettings, RobustSettings};
@@ -26,7 +27,7 @@ fn normal(rng: &mut impl Rng) -> f64 {
 }
 
 /// Gaussian mutation of about two genes (at least one), clamped to `[0, 1]`.
-pub fn mutate(g: &mut Genes, sigma: f64, rng: &mut impl Rng) {
+pub(super) fn mutate(g: &mut Genes, sigma: f64, rng: &mut impl Rng) {
     let forced = rng.random_range(0..GENES);
     for (i, v) in g.iter_mut().enumerate() {
         if i == forced || rng.random::<f64>() < 2.0 / GENES as f64 {
@@ -40,7 +41,7 @@ pub fn mutate(g: &mut Genes, sigma: f64, rng: &mut impl Rng) {
 /// (`[L_P, B_P]`) that covers only part of its target, one edge on the target's edge and
 /// the other inside it, grows back along this ridge, which single-gene mutations cross
 /// only by chance.
-pub fn mutate_from_edge(g: &mut Genes, bounds: &Bounds, box_px: [f64; 2], step: f64, rng: &mut impl Rng) {
+pub(super) fn mutate_from_edge(g: &mut Genes, bounds: &Bounds, box_px: [f64; 2], step: f64, rng: &mut impl Rng) {
     let mut p = bounds.decode(g);
     let factor = (step * normal(rng)).exp();
     let [length, width] = p.size_mm(box_px[0], box_px[1]);
@@ -60,7 +61,7 @@ pub fn mutate_from_edge(g: &mut Genes, bounds: &Bounds, box_px: [f64; 2], step: 
 }
 
 /// Blend crossover (BLX-0.25): each gene drawn between and slightly beyond the parents'.
-pub fn blend(a: &Genes, b: &Genes, rng: &mut impl Rng) -> Genes {
+fn blend(a: &Genes, b: &Genes, rng: &mut impl Rng) -> Genes {
     std::array::from_fn(|i| {
         let u = rng.random_range(-0.25..1.25);
         (a[i] + u * (b[i] - a[i])).clamp(0.0, 1.0)
@@ -94,8 +95,10 @@ pub fn view_sample(problem: &Problem, rng: &mut impl Rng) -> Genes {
 }
 
 /// One population: genes and their fitness, sorted best first after [`Population::sort`].
-pub(crate) struct Population {
+pub(super) struct Population {
+    /// The individuals.
     pub genes: Vec<Genes>,
+    /// Their fitness, once scored.
     pub fit: Vec<Fitness>,
     /// Reused by [`Population::sort`].
     scratch: Vec<(Genes, Fitness)>,
@@ -184,138 +187,204 @@ pub fn run(
     progress: &mut dyn FnMut(usize),
 ) -> Outcome {
     let mut rng = StdRng::seed_from_u64(seed);
-    let n = ga.population;
-    let keep = ga.survivor_count();
     let levels = problem.levels.len().min(robust.pyramid_levels);
     let plan = schedule(generations, &robust.level_share[robust.level_share.len() - levels..]);
-    let coarsest = levels - 1;
-    // The first population starts from the exhaustive scan (topped up from the view
-    // prior if the scan found fewer placements), the others from the view prior.
-    let start = std::time::Instant::now();
-    let scanned = if levels > 1 {
-        super::scan::seeds(problem, n)
-    } else {
-        Vec::new()
-    };
-    tracing::debug!("acquisition scan: {:.0} ms", ms(start));
-    let start = std::time::Instant::now();
-    let mut evaluations = 0;
-    let mut pops = Vec::with_capacity(robust.restarts);
-    for r in 0..robust.restarts {
-        if r == 0 && !scanned.is_empty() {
-            let mut genes = scanned.clone();
-            while genes.len() < n {
-                genes.push(view_sample(problem, &mut rng));
-            }
-            pops.push(Population::new(genes));
-        } else {
-            pops.push(Population::seeded(problem, coarsest, n, robust.prior_samples, &mut rng));
-            evaluations += n * robust.prior_samples.max(1);
+    let mut search = Search::new(problem, ga, robust, levels, generations);
+    search.seed(&mut rng);
+    for (step, &gens) in plan.iter().enumerate() {
+        let level = levels - 1 - step;
+        let start = Instant::now();
+        search.evolve_on(level, gens, &mut rng, progress);
+        if step == 0 {
+            search.merge_restarts();
+        }
+        tracing::debug!("level {level}: {gens} generations in {:.0} ms", ms(start));
+    }
+    search.finish(&mut rng)
+}
+
+/// One run of the coarse-to-fine search: its populations (one per restart until they
+/// merge after the coarsest level), the buffers of their evaluation, and what it reports.
+struct Search<'p, 'a> {
+    problem: &'p Problem<'a>,
+    ga: &'p GaSettings,
+    robust: &'p RobustSettings,
+    /// Pyramid levels searched; the coarsest is `levels - 1`.
+    levels: usize,
+    /// One population per restart, then the merged one.
+    pops: Vec<Population>,
+    /// Reused by the populations' sorts.
+    order: Vec<usize>,
+    /// The individuals of every population scored in one parallel batch, and their fitness.
+    batch: Vec<Genes>,
+    batch_fit: Vec<Fitness>,
+    /// Candidates evaluated so far.
+    evaluations: usize,
+    /// Generations run so far, of `generations`.
+    generation: usize,
+    generations: usize,
+    /// Generations whose best individual is reported, and the reports.
+    marks: Vec<usize>,
+    snapshots: Vec<Snapshot>,
+}
+
+impl<'p, 'a> Search<'p, 'a> {
+    fn new(
+        problem: &'p Problem<'a>,
+        ga: &'p GaSettings,
+        robust: &'p RobustSettings,
+        levels: usize,
+        generations: usize,
+    ) -> Self {
+        let all = ga.population * robust.restarts;
+        Self {
+            problem,
+            ga,
+            robust,
+            levels,
+            pops: Vec::with_capacity(robust.restarts),
+            order: Vec::with_capacity(all),
+            batch: Vec::with_capacity(all),
+            batch_fit: Vec::with_capacity(all),
+            evaluations: 0,
+            generation: 0,
+            generations,
+            marks: snapshot_generations(generations),
+            snapshots: Vec::new(),
         }
     }
-    tracing::debug!("view-prior seeding: {:.0} ms", ms(start));
-    let mut order = Vec::with_capacity(n * robust.restarts);
-    let mut batch: Vec<Genes> = Vec::with_capacity(n * robust.restarts);
-    let mut batch_fit: Vec<Fitness> = Vec::with_capacity(n * robust.restarts);
-    let marks = snapshot_generations(generations);
-    let mut snapshots = Vec::new();
-    let mut generation = 0;
 
-    // Evaluates individuals `from..` of every population as one parallel batch.
-    let mut evaluate = |pops: &mut [Population], level: usize, from: usize, evaluations: &mut usize| {
-        batch.clear();
-        for p in pops.iter() {
-            batch.extend_from_slice(&p.genes[from..]);
-        }
-        batch_fit.clear();
-        batch_fit.resize(batch.len(), Fitness::default());
-        problem.evaluate_batch(level, &batch, &mut batch_fit);
-        *evaluations += batch.len();
-        let mut k = 0;
-        for p in pops.iter_mut() {
-            for f in p.fit[from..].iter_mut() {
-                *f = batch_fit[k];
-                k += 1;
+    /// The restarts' first populations: the first from the exhaustive scan (topped up
+    /// from the view prior if the scan found fewer placements), the others from the
+    /// view prior.
+    fn seed(&mut self, rng: &mut impl Rng) {
+        let (problem, n) = (self.problem, self.ga.population);
+        let start = Instant::now();
+        let mut scanned = if self.levels > 1 {
+            Some(super::scan::seeds(problem, n)).filter(|s| !s.is_empty())
+        } else {
+            None
+        };
+        tracing::debug!("acquisition scan: {:.0} ms", ms(start));
+        let start = Instant::now();
+        let oversample = self.robust.prior_samples;
+        for r in 0..self.robust.restarts {
+            match scanned.take().filter(|_| r == 0) {
+                Some(mut genes) => {
+                    while genes.len() < n {
+                        genes.push(view_sample(problem, rng));
+                    }
+                    self.pops.push(Population::new(genes));
+                }
+                None => {
+                    let coarsest = self.levels - 1;
+                    self.pops
+                        .push(Population::seeded(problem, coarsest, n, oversample, rng));
+                    self.evaluations += n * oversample.max(1);
+                }
             }
         }
-    };
+        tracing::debug!("view-prior seeding: {:.0} ms", ms(start));
+    }
 
-    for (step, &gens) in plan.iter().enumerate() {
-        let level = coarsest - step;
-        let level_start = std::time::Instant::now();
-        evaluate(&mut pops, level, 0, &mut evaluations);
+    /// Scores individuals `from..` of every population on `level`, as one parallel batch.
+    fn evaluate(&mut self, level: usize, from: usize) {
+        self.batch.clear();
+        for p in &self.pops {
+            self.batch.extend_from_slice(&p.genes[from..]);
+        }
+        self.batch_fit.clear();
+        self.batch_fit.resize(self.batch.len(), Fitness::default());
+        self.problem.evaluate_batch(level, &self.batch, &mut self.batch_fit);
+        self.evaluations += self.batch.len();
+        let mut k = 0;
+        for p in self.pops.iter_mut() {
+            let fit = &mut p.fit[from..];
+            fit.copy_from_slice(&self.batch_fit[k..k + fit.len()]);
+            k += fit.len();
+        }
+    }
+
+    /// Scores every population on `level`, then evolves them `gens` generations there
+    /// with a mutation step that shrinks over the level (and random immigrants on the
+    /// coarsest of several levels).
+    fn evolve_on(&mut self, level: usize, gens: usize, rng: &mut impl Rng, progress: &mut dyn FnMut(usize)) {
+        let keep = self.ga.survivor_count();
+        self.evaluate(level, 0);
         let sigma0 = SIGMA_FULL * 3f64.powi(level as i32);
-        let immigrants = if level == coarsest && levels > 1 {
-            robust.immigrants
+        let immigrants = if level == self.levels - 1 && self.levels > 1 {
+            self.robust.immigrants
         } else {
             0.0
         };
         for g in 0..gens {
             let sigma = sigma0 * (1.0 - 0.66 * g as f64 / gens.max(1) as f64);
-            for p in pops.iter_mut() {
-                p.sort(&mut order);
-                p.breed(problem, keep, ga, sigma, immigrants, &mut rng);
+            for p in self.pops.iter_mut() {
+                p.sort(&mut self.order);
+                p.breed(self.problem, keep, self.ga, sigma, immigrants, rng);
             }
-            evaluate(&mut pops, level, keep, &mut evaluations);
-            generation += 1;
-            if marks.contains(&generation) {
-                let (pi, ii) = best_of(&pops);
-                let best = pops[pi].genes[ii];
-                snapshots.push(Snapshot {
-                    generation,
-                    best: problem.bounds.decode(&best),
-                    fitness: problem.evaluate(0, &best),
+            self.evaluate(level, keep);
+            self.generation += 1;
+            if self.marks.contains(&self.generation) {
+                let best = self.best();
+                self.snapshots.push(Snapshot {
+                    generation: self.generation,
+                    best: self.problem.bounds.decode(&best),
+                    fitness: self.problem.evaluate(0, &best),
                 });
             }
-            progress(generation);
+            progress(self.generation);
         }
-        if step == 0 && pops.len() > 1 {
-            // The restarts merge: the best n individuals of all of them continue.
-            let mut all = Population::new(pops.iter().flat_map(|p| p.genes.iter().copied()).collect());
-            all.fit = pops.iter().flat_map(|p| p.fit.iter().copied()).collect();
-            all.sort(&mut order);
-            all.genes.truncate(n);
-            all.fit.truncate(n);
-            pops = vec![all];
+    }
+
+    /// The restarts merge: the best `population` individuals of all of them continue.
+    fn merge_restarts(&mut self) {
+        if self.pops.len() < 2 {
+            return;
         }
-        tracing::debug!("level {level}: {gens} generations in {:.0} ms", ms(level_start));
+        let n = self.ga.population;
+        let mut all = Population::new(self.pops.iter().flat_map(|p| p.genes.iter().copied()).collect());
+        all.fit = self.pops.iter().flat_map(|p| p.fit.iter().copied()).collect();
+        all.sort(&mut self.order);
+        all.genes.truncate(n);
+        all.fit.truncate(n);
+        self.pops = vec![all];
     }
-    let (pi, ii) = best_of(&pops);
-    let start = pops[pi].genes[ii];
-    let refine_start = std::time::Instant::now();
-    let (best, fitness, used) = refine(problem, start, robust.refine_evaluations, &mut rng);
-    tracing::debug!("refinement: {used} evaluations in {:.0} ms", ms(refine_start));
-    evaluations += used;
-    if let Some(last) = snapshots.last_mut() {
-        last.best = problem.bounds.decode(&best);
-        last.fitness = fitness;
+
+    /// The best individual of all populations (of equal scores the first).
+    fn best(&self) -> Genes {
+        let heads: Vec<Fitness> = self
+            .pops
+            .iter()
+            .map(|p| p.fit[best_index(&p.fit, Ties::First)])
+            .collect();
+        let p = &self.pops[best_index(&heads, Ties::First)];
+        p.genes[best_index(&p.fit, Ties::First)]
     }
-    Outcome {
-        best: problem.bounds.decode(&best),
-        fitness,
-        generations,
-        evaluations,
-        snapshots,
+
+    /// Refines the best individual at full resolution ([`refine`]) and reports.
+    fn finish(mut self, rng: &mut impl Rng) -> Outcome {
+        let start = Instant::now();
+        let (best, fitness, used) = refine(self.problem, self.best(), self.robust.refine_evaluations, rng);
+        tracing::debug!("refinement: {used} evaluations in {:.0} ms", ms(start));
+        let best = self.problem.bounds.decode(&best);
+        if let Some(last) = self.snapshots.last_mut() {
+            last.best = best;
+            last.fitness = fitness;
+        }
+        Outcome {
+            best,
+            fitness,
+            generations: self.generations,
+            evaluations: self.evaluations + used,
+            snapshots: self.snapshots,
+        }
     }
 }
 
 /// Milliseconds since `t`.
-fn ms(t: std::time::Instant) -> f64 {
+fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
-}
-
-fn best_of(pops: &[Population]) -> (usize, usize) {
-    let mut best = (0, 0);
-    let mut f = f64::NEG_INFINITY;
-    for (pi, p) in pops.iter().enumerate() {
-        for (ii, fit) in p.fit.iter().enumerate() {
-            if fit.score > f {
-                f = fit.score;
-                best = (pi, ii);
-            }
-        }
-    }
-    best
 }
 
 /// (1+λ) evolution strategy at full resolution with a success-based step size.
@@ -336,10 +405,8 @@ fn refine(problem: &Problem, start: Genes, budget: usize, rng: &mut impl Rng) ->
         }
         problem.evaluate_batch(0, &kids, &mut fit);
         used += lambda;
-        let (i, f) = fit.iter().enumerate().fold(
-            (0, fit[0]),
-            |acc, (i, f)| if f.score > acc.1.score { (i, *f) } else { acc },
-        );
+        let i = best_index(&fit, Ties::First);
+        let f = fit[i];
         if f.score > best_fit.score {
             best = kids[i];
             best_fit = f;

@@ -6,7 +6,9 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 use super::{Genes, Problem};
+use crate::estimator::fitness::PointSet;
 use crate::estimator::pose::PoseSize;
+use crate::vision::lookup::LevelLookup;
 
 /// Pixel step of the position scan on the coarsest level.
 const STEP_PX: f64 = 3.0;
@@ -53,70 +55,144 @@ impl Placement {
 
 /// Up to `n` seeds, best first, from the scan of the coarsest level.
 pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
-    let level = problem.levels.len() - 1;
-    let lv = &problem.levels[level];
-    let points = &problem.points[level];
-    let (w, h) = (lv.rig.width as f64, lv.rig.height as f64);
-    let fx_full = lv.rig.left.fx / lv.scale;
-    let b = &problem.bounds;
-    let z_ref = (b.lo[2] * b.hi[2]).sqrt();
-    let hand_from_left = problem.scorer.left_from_hand.inverse();
-    // Apparent model lengths from the smallest allowed extent to a large share of the image.
-    let smallest = problem.scorer.min_extent_px.max(16.0) / fx_full;
-    let largest = LARGEST_FRACTION * (lv.rig.height as f64 / lv.scale) / fx_full;
-    let mut placements = Vec::new();
-    let mut pixels = Vec::new();
-    let mut v = STEP_PX / 2.0;
-    while v < h {
-        let mut u = STEP_PX / 2.0;
-        while u < w {
-            pixels.push((u, v, lv.rig.left.ray(u, v)));
-            u += STEP_PX;
-        }
-        v += STEP_PX;
-    }
-    for si in 0..SIZES {
-        let l_over_z = smallest * (largest / smallest).powf(si as f64 / (SIZES - 1) as f64);
-        for ri in 0..ROLLS {
-            let roll =
-                UnitQuaternion::from_scaled_axis(Vector3::z() * (std::f64::consts::TAU * ri as f64 / ROLLS as f64));
-            placements.extend(pixels.iter().map(|&(u, v, ray)| Placement {
-                u,
-                v,
-                ray,
-                l_over_z,
-                roll,
-            }));
+    let scan = Scan::new(problem);
+    let placements = scan.placements();
+    let order = scan.best_placements(&placements);
+    let kept = distinct(&placements, &order);
+    scan.depth_scan(&kept, n)
+}
+
+/// The scan's view of the problem: the coarsest level and its points, and the fixed
+/// depth at which placements are first compared.
+struct Scan<'p, 'a> {
+    problem: &'p Problem<'a>,
+    level: &'p LevelLookup,
+    points: &'p PointSet,
+    hand_from_left: Isometry3<f64>,
+    /// The geometric middle of the depth range.
+    z_ref: f64,
+}
+
+impl<'p, 'a> Scan<'p, 'a> {
+    fn new(problem: &'p Problem<'a>) -> Self {
+        let level = problem.levels.len() - 1;
+        let b = &problem.bounds;
+        Self {
+            problem,
+            level: &problem.levels[level],
+            points: &problem.points[level],
+            hand_from_left: problem.scorer.left_from_hand.inverse(),
+            z_ref: (b.lo[2] * b.hi[2]).sqrt(),
         }
     }
-    // A cheap pass with a quarter of the points, then every point for the most promising.
-    let sparse = points.every(SPARSE);
-    let mut rough = vec![0.0; placements.len()];
-    problem.par_fill(&placements, &mut rough, |pl| {
-        problem
-            .scorer
-            .evaluate_left(&sparse, lv, &pl.candidate(problem, &hand_from_left, z_ref))
-    });
-    let mut order: Vec<usize> = (0..placements.len()).collect();
-    let promising = RESCORE.min(order.len());
-    if promising < order.len() {
-        order.select_nth_unstable_by(promising, |&a, &b| rough[b].total_cmp(&rough[a]));
-        order.truncate(promising);
+
+    /// The candidate of `placement` at depth `z`.
+    fn candidate(&self, placement: &Placement, z: f64) -> PoseSize {
+        placement.candidate(self.problem, &self.hand_from_left, z)
     }
-    let mut exact = vec![0.0; order.len()];
-    problem.par_fill(&order, &mut exact, |&i| {
-        problem
-            .scorer
-            .evaluate_left(points, lv, &placements[i].candidate(problem, &hand_from_left, z_ref))
-    });
-    let mut scores = vec![f64::NEG_INFINITY; placements.len()];
-    for (&i, &f) in order.iter().zip(&exact) {
-        scores[i] = f;
+
+    /// Every placement: the left image's pixels every [`STEP_PX`], at [`SIZES`] apparent
+    /// sizes from the smallest allowed extent to a large share of the image, and
+    /// [`ROLLS`] in-plane rotations.
+    fn placements(&self) -> Vec<Placement> {
+        let (lv, problem) = (self.level, self.problem);
+        let (w, h) = (lv.rig.width as f64, lv.rig.height as f64);
+        let fx_full = lv.rig.left.fx / lv.scale;
+        let smallest = problem.scorer.min_extent_px.max(16.0) / fx_full;
+        let largest = LARGEST_FRACTION * (lv.rig.height as f64 / lv.scale) / fx_full;
+        let mut pixels = Vec::new();
+        let mut v = STEP_PX / 2.0;
+        while v < h {
+            let mut u = STEP_PX / 2.0;
+            while u < w {
+                pixels.push((u, v, lv.rig.left.ray(u, v)));
+                u += STEP_PX;
+            }
+            v += STEP_PX;
+        }
+        let mut placements = Vec::new();
+        for si in 0..SIZES {
+            let l_over_z = smallest * (largest / smallest).powf(si as f64 / (SIZES - 1) as f64);
+            for ri in 0..ROLLS {
+                let roll =
+                    UnitQuaternion::from_scaled_axis(Vector3::z() * (std::f64::consts::TAU * ri as f64 / ROLLS as f64));
+                placements.extend(pixels.iter().map(|&(u, v, ray)| Placement {
+                    u,
+                    v,
+                    ray,
+                    l_over_z,
+                    roll,
+                }));
+            }
+        }
+        placements
     }
-    order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]).then(a.cmp(&b)));
-    // Keep distinct placements: not within a few pixels of a better one of similar size.
+
+    /// Indices of the most promising placements, best first by `F_L` at the reference
+    /// depth: a cheap pass with one point in [`SPARSE`], then every point for the
+    /// [`RESCORE`] best of it.
+    fn best_placements(&self, placements: &[Placement]) -> Vec<usize> {
+        let (problem, lv) = (self.problem, self.level);
+        let sparse = self.points.every(SPARSE);
+        let mut rough = vec![0.0; placements.len()];
+        problem.par_fill(placements, &mut rough, |pl| {
+            problem
+                .scorer
+                .evaluate_left(&sparse, lv, &self.candidate(pl, self.z_ref))
+        });
+        let mut order: Vec<usize> = (0..placements.len()).collect();
+        let promising = RESCORE.min(order.len());
+        if promising < order.len() {
+            order.select_nth_unstable_by(promising, |&a, &b| rough[b].total_cmp(&rough[a]));
+            order.truncate(promising);
+        }
+        let mut exact = vec![0.0; order.len()];
+        problem.par_fill(&order, &mut exact, |&i| {
+            problem
+                .scorer
+                .evaluate_left(self.points, lv, &self.candidate(&placements[i], self.z_ref))
+        });
+        let mut scores = vec![f64::NEG_INFINITY; placements.len()];
+        for (&i, &f) in order.iter().zip(&exact) {
+            scores[i] = f;
+        }
+        order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]).then(a.cmp(&b)));
+        order
+    }
+
+    /// The `n` best candidates of a scan along each placement's line of sight over the
+    /// depth range, scored on both images.
+    fn depth_scan(&self, kept: &[Placement], n: usize) -> Vec<Genes> {
+        let (problem, b) = (self.problem, &self.problem.bounds);
+        let depths: Vec<f64> = (0..DEPTHS)
+            .map(|i| b.lo[2] * (b.hi[2] / b.lo[2]).powf(i as f64 / (DEPTHS - 1) as f64))
+            .collect();
+        let trials: Vec<(Placement, f64)> = kept.iter().flat_map(|p| depths.iter().map(move |&z| (*p, z))).collect();
+        let mut fits = vec![0.0; trials.len()];
+        problem.par_fill(&trials, &mut fits, |(pl, z)| {
+            problem
+                .scorer
+                .evaluate(self.points, self.level, &self.candidate(pl, *z))
+                .score
+        });
+        let mut order: Vec<usize> = (0..trials.len()).collect();
+        order.sort_by(|&a, &b| fits[b].total_cmp(&fits[a]));
+        order
+            .into_iter()
+            .take(n)
+            .map(|i| {
+                let (pl, z) = trials[i];
+                b.encode(&self.candidate(&pl, z))
+            })
+            .collect()
+    }
+}
+
+/// Up to [`KEEP`] placements in `order`, skipping any within a few pixels of a kept
+/// (better) one of similar size.
+fn distinct(placements: &[Placement], order: &[usize]) -> Vec<Placement> {
     let mut kept: Vec<Placement> = Vec::with_capacity(KEEP);
-    for &i in &order {
+    for &i in order {
         let p = placements[i];
         let near = kept.iter().any(|k| {
             let size_ratio = (p.l_over_z / k.l_over_z).ln().abs();
@@ -129,26 +205,5 @@ pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
             }
         }
     }
-    // Depth along each kept line of sight, scored on both images.
-    let depths: Vec<f64> = (0..DEPTHS)
-        .map(|i| b.lo[2] * (b.hi[2] / b.lo[2]).powf(i as f64 / (DEPTHS - 1) as f64))
-        .collect();
-    let trials: Vec<(Placement, f64)> = kept.iter().flat_map(|p| depths.iter().map(move |&z| (*p, z))).collect();
-    let mut fits = vec![0.0; trials.len()];
-    problem.par_fill(&trials, &mut fits, |(pl, z)| {
-        problem
-            .scorer
-            .evaluate(points, lv, &pl.candidate(problem, &hand_from_left, *z))
-            .score
-    });
-    let mut order: Vec<usize> = (0..trials.len()).collect();
-    order.sort_by(|&a, &b| fits[b].total_cmp(&fits[a]));
-    order
-        .into_iter()
-        .take(n)
-        .map(|i| {
-            let (pl, z) = trials[i];
-            b.encode(&pl.candidate(problem, &hand_from_left, z))
-        })
-        .collect()
+    kept
 }
