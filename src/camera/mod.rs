@@ -11,14 +11,23 @@ use nalgebra::{Isometry3, Point2, Point3, Vector3};
 /// Intrinsics of one camera in OpenCV convention (pixels; distortion k1 k2 p1 p2 k3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Intrinsics {
+    /// Horizontal focal length, pixels.
     pub fx: f64,
+    /// Vertical focal length, pixels.
     pub fy: f64,
+    /// Principal point column, pixels from the left image edge.
     pub cx: f64,
+    /// Principal point row, pixels from the top image edge.
     pub cy: f64,
+    /// First radial distortion coefficient (r² term).
     pub k1: f64,
+    /// Second radial distortion coefficient (r⁴ term).
     pub k2: f64,
+    /// First tangential distortion coefficient.
     pub p1: f64,
+    /// Second tangential distortion coefficient.
     pub p2: f64,
+    /// Third radial distortion coefficient (r⁶ term).
     pub k3: f64,
 }
 
@@ -104,8 +113,11 @@ pub struct StereoRig {
     pub width: u32,
     /// Image height of one eye, pixels.
     pub height: u32,
+    /// Intrinsics of the left camera.
     pub left: Intrinsics,
+    /// Intrinsics of the right camera.
     pub right: Intrinsics,
+    /// Maps left-camera coordinates into right-camera coordinates (translation in mm).
     pub right_from_left: Isometry3<f64>,
 }
 

@@ -106,6 +106,7 @@ impl PoseClient {
 /// A pose with its age, judged against a deadline.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Latest {
+    /// The pose as received.
     pub pose: PoseMsg,
     /// Time since its frame was captured.
     pub age: Duration,
@@ -188,7 +189,9 @@ fn ms(d: Duration) -> f64 {
 /// An end-effector velocity in the hand frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct VelocityCommand {
+    /// Linear velocity of the hand, mm/s, hand frame.
     pub linear_mm_s: Vector3<f64>,
+    /// Angular velocity of the hand (axis times rate), rad/s, hand frame.
     pub angular_rad_s: Vector3<f64>,
 }
 
@@ -199,13 +202,18 @@ pub struct VelocityCommand {
 /// down to its speed limit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ServoLaw {
+    /// λ, 1/s: the command is this times the pose error.
     pub gain: f64,
+    /// Linear speed limit, mm/s.
     pub max_speed_mm_s: f64,
+    /// Angular speed limit, rad/s.
     pub max_turn_rad_s: f64,
+    /// `H*_T_O`: the object's pose in the hand frame at which the hand may grasp it (mm).
     pub hand_from_grasp: Isometry3<f64>,
 }
 
 impl ServoLaw {
+    /// The law of the `[controller]` settings.
     pub fn new(settings: &ControllerSettings) -> Self {
         Self {
             gain: settings.gain,
@@ -252,7 +260,9 @@ pub trait RobotDriver {
 /// A driver that only logs the commands it gets (at debug level) and keeps the last.
 #[derive(Debug, Default)]
 pub struct LogDriver {
+    /// The last command received (zero before the first).
     pub last: VelocityCommand,
+    /// Commands received so far, stops included.
     pub commands: u64,
 }
 

@@ -37,7 +37,9 @@ impl Layout {
 /// pixels, before NMS) and the best score each class reached anywhere.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Decoded {
+    /// One detection per box and class scoring at least the minimum, input pixels.
     pub candidates: Vec<Detection>,
+    /// The best score of each class over all boxes, indexed by class id.
     pub best_score: Vec<f32>,
 }
 

@@ -12,15 +12,21 @@ pub const PAD_GRAY: u8 = 114;
 /// Where the scaled photo sits in the network input.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Letterbox {
+    /// Photo width, pixels (at least 1).
     pub photo_w: u32,
+    /// Photo height, pixels (at least 1).
     pub photo_h: u32,
+    /// Network input width, pixels (at least 1).
     pub input_w: u32,
+    /// Network input height, pixels (at least 1).
     pub input_h: u32,
-    /// Size of the scaled photo inside the input.
+    /// Width of the scaled photo inside the input, input pixels.
     pub scaled_w: u32,
+    /// Height of the scaled photo inside the input, input pixels.
     pub scaled_h: u32,
-    /// Top-left corner of the scaled photo in the input.
+    /// Left edge of the scaled photo in the input (padding on the left), input pixels.
     pub pad_x: u32,
+    /// Top edge of the scaled photo in the input (padding above), input pixels.
     pub pad_y: u32,
 }
 

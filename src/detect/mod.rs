@@ -27,45 +27,99 @@ use letterbox::Letterbox;
 /// A problem detecting the object in a photo.
 #[derive(Debug, thiserror::Error)]
 pub enum DetectError {
+    /// The requested class name is not one of the COCO classes.
     #[error("{name:?} is not a COCO class{}; the 80 COCO classes are: {}", did_you_mean(.suggestion), coco::NAMES.join(", "))]
     UnknownClass {
+        /// The name as given.
         name: String,
+        /// The COCO name closest to it, when it looks like a typo.
         suggestion: Option<&'static str>,
     },
+    /// No box of the requested class reached the minimum score.
     #[error("{photo}: no {class} detected (best {class} score {best:.3}, below the minimum score {min_score})")]
     NotDetected {
+        /// The photo searched.
         photo: PathBuf,
+        /// COCO name of the requested class.
         class: String,
+        /// Best score the class reached anywhere in the photo, 0–1.
         best: f32,
+        /// Score a detection needs, 0–1.
         min_score: f32,
     },
+    /// No box of any class reached the minimum score.
     #[error(
         "{photo}: nothing detected (best: {best_class} with score {best:.3}, below the minimum score {min_score})"
     )]
     NothingDetected {
+        /// The photo searched.
         photo: PathBuf,
+        /// COCO name of the class that scored highest.
         best_class: String,
+        /// That class's best score, 0–1.
         best: f32,
+        /// Score a detection needs, 0–1.
         min_score: f32,
     },
+    /// A network output's shape is neither the YOLOv8/YOLO11 nor the YOLOv5 layout.
     #[error(
         "output shape {shape:?} is not a YOLO layout photopose reads: expected [1, {}, N] (YOLOv8/YOLO11) or [1, N, {}] (YOLOv5, the converted YOLOv3-tiny)",
         4 + classes,
         5 + classes
     )]
-    UnsupportedOutput { shape: Vec<usize>, classes: usize },
+    UnsupportedOutput {
+        /// The output's shape.
+        shape: Vec<usize>,
+        /// Number of classes the network was expected to score.
+        classes: usize,
+    },
+    /// A network output holds a different number of values than its shape implies.
     #[error("output of shape {shape:?} holds {len} values")]
-    OutputLength { shape: Vec<usize>, len: usize },
+    OutputLength {
+        /// The output's shape.
+        shape: Vec<usize>,
+        /// Number of values it holds.
+        len: usize,
+    },
+    /// The network has no input, or its first input is not one RGB image `[1, 3, H, W]`.
     #[error("{model}: input shape {shape:?} is not one RGB image [1, 3, H, W]")]
-    UnsupportedInput { model: PathBuf, shape: Vec<i64> },
+    UnsupportedInput {
+        /// The network file.
+        model: PathBuf,
+        /// The input's shape, negative for a free dimension (empty when there is no tensor input).
+        shape: Vec<i64>,
+    },
+    /// The network's output could not be turned into detections.
     #[error("{model}: {problem}")]
-    InModel { model: PathBuf, problem: Box<DetectError> },
+    InModel {
+        /// The network file.
+        model: PathBuf,
+        /// What was wrong with the output.
+        problem: Box<DetectError>,
+    },
+    /// The ONNX Runtime shared library path is not a file.
     #[error("ONNX Runtime library {path} (from {origin}) not found or not a file: run tools/setup-detect, or point ORT_DYLIB_PATH or [detect] onnxruntime at libonnxruntime.so 1.31 or newer")]
-    LibraryMissing { path: PathBuf, origin: &'static str },
+    LibraryMissing {
+        /// The library path tried.
+        path: PathBuf,
+        /// Where the path came from: `ORT_DYLIB_PATH` or `[detect] onnxruntime`.
+        origin: &'static str,
+    },
+    /// The `[detect] model` path is not a file.
     #[error("detector model {path} not found: run tools/setup-detect, or set [detect] model to a YOLO .onnx file")]
-    ModelMissing { path: PathBuf },
+    ModelMissing {
+        /// The model path tried.
+        path: PathBuf,
+    },
+    /// ONNX Runtime failed or panicked loading its library, loading the network or running
+    /// it, or the network has no float output.
     #[error("{path}: {message}")]
-    Runtime { path: PathBuf, message: String },
+    Runtime {
+        /// The library or network file concerned.
+        path: PathBuf,
+        /// ONNX Runtime's message, on one line.
+        message: String,
+    },
 }
 
 fn did_you_mean(suggestion: &Option<&'static str>) -> String {
@@ -75,9 +129,13 @@ fn did_you_mean(suggestion: &Option<&'static str>) -> String {
 /// An axis-aligned box by its corners, pixels (`x0, y0` top-left, `x1, y1` bottom-right).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rect {
+    /// Left edge, pixels.
     pub x0: f32,
+    /// Top edge, pixels.
     pub y0: f32,
+    /// Right edge, pixels.
     pub x1: f32,
+    /// Bottom edge, pixels.
     pub y1: f32,
 }
 
@@ -92,14 +150,17 @@ impl Rect {
         }
     }
 
+    /// Width, pixels (0 when `x1 < x0`).
     pub fn width(&self) -> f32 {
         (self.x1 - self.x0).max(0.0)
     }
 
+    /// Height, pixels (0 when `y1 < y0`).
     pub fn height(&self) -> f32 {
         (self.y1 - self.y0).max(0.0)
     }
 
+    /// Area, square pixels (0 for an empty box).
     pub fn area(&self) -> f32 {
         self.width() * self.height()
     }
@@ -140,8 +201,11 @@ impl Rect {
 /// pixels straight out of [`decode`], in photo pixels after [`postprocess`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Detection {
+    /// COCO class id, an index into [`coco::NAMES`].
     pub class: usize,
+    /// Confidence, 0–1 (class score, times objectness for YOLOv5 outputs).
     pub score: f32,
+    /// The box, in input or photo pixels (see above).
     pub rect: Rect,
 }
 

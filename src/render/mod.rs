@@ -57,6 +57,7 @@ pub struct Card {
 /// Appearance of an [`Occluder`].
 #[derive(Debug, Clone)]
 pub enum OccluderFill {
+    /// One colour, RGB 0–255.
     Solid([u8; 3]),
     /// Stretched over the whole rectangle (same mapping as the card).
     Texture(RgbImage),
@@ -66,9 +67,11 @@ pub enum OccluderFill {
 /// origin, spanning its local x/y axes.
 #[derive(Debug, Clone)]
 pub struct Occluder {
+    /// The occluder's local frame in the left-camera frame (translation in mm).
     pub left_from_occluder: Isometry3<f64>,
     /// Extent along local x and y, mm.
     pub size_mm: [f64; 2],
+    /// What its faces look like.
     pub fill: OccluderFill,
 }
 
@@ -115,12 +118,15 @@ impl Occluder {
 /// Everything the synthetic camera sees.
 #[derive(Debug, Clone)]
 pub struct Scene {
+    /// The target card.
     pub card: Card,
+    /// The wall behind the card.
     pub background: Background,
     /// Standard deviation of additive Gaussian pixel noise, grey levels (0 = none).
     pub noise_sigma: f64,
     /// Multiplies the card's colour (1.0 = unchanged).
     pub brightness: f64,
+    /// An opaque rectangle in view, if any (typically hiding part of the card).
     pub occluder: Option<Occluder>,
     /// Seed of the pixel noise.
     pub seed: u64,
@@ -165,6 +171,8 @@ pub struct Renderer {
 const REGION_MARGIN_PX: f64 = 3.0;
 
 impl Renderer {
+    /// Renders `scene` without card and occluder once, for `rig` with the hand frame at
+    /// `left_from_hand` in the left-camera frame, and prepares the scene's textures.
     pub fn new(rig: &StereoRig, left_from_hand: &Isometry3<f64>, scene: &Scene) -> Self {
         let mut empty = scene.clone();
         empty.card.size_mm = [0.0, 0.0];

@@ -152,6 +152,7 @@ impl Ipc {
             .map_err(|e| IpcError::failed("create the frame publisher", e))
     }
 
+    /// A subscriber to the frames service that keeps the newest two frames.
     pub fn frame_subscriber(&self) -> Result<FrameSubscriber> {
         self.frames()?
             .subscriber_builder()
@@ -160,6 +161,7 @@ impl Ipc {
             .map_err(|e| IpcError::failed(format!("subscribe to {FRAMES_SERVICE}"), e))
     }
 
+    /// A publisher on the pose service `service`.
     pub fn pose_publisher(&self, service: &str) -> Result<PosePublisher> {
         self.poses(service)?
             .publisher_builder()
@@ -167,6 +169,7 @@ impl Ipc {
             .map_err(|e| IpcError::failed(format!("publish on {service}"), e))
     }
 
+    /// A subscriber to the pose service `service` (it keeps up to 64 unread poses).
     pub fn pose_subscriber(&self, service: &str) -> Result<PoseSubscriber> {
         self.poses(service)?
             .subscriber_builder()
@@ -175,8 +178,9 @@ impl Ipc {
     }
 }
 
-/// Event ports of a service's wake-up events.
+/// Listens for a service's wake-up events: [`Ipc::wait_for`] sleeps on it.
 pub type Wake = Listener<Transport>;
+/// Notifies a service's [`Wake`] listeners: [`wake_up`] after each send.
 pub type Waker = Notifier<Transport>;
 
 impl Ipc {

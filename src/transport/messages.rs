@@ -51,8 +51,9 @@ pub struct FrameHeader {
     pub frame_id: u64,
     /// CLOCK_MONOTONIC when the frame was exposed or received, ns.
     pub capture_time_ns: u64,
-    /// Size of one eye, pixels.
+    /// Width of one eye, pixels (the side-by-side image is twice as wide).
     pub width: u32,
+    /// Height of one eye and of the side-by-side image, pixels.
     pub height: u32,
     /// One of [`pixel_format`].
     pub pixel_format: u32,
@@ -65,19 +66,44 @@ pub struct FrameHeader {
 /// Why a received frame cannot be used: its header disagrees with its payload.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 pub enum FrameFault {
+    /// The header's `pixel_format` is not one of [`pixel_format`].
     #[error("unknown pixel format code {code}")]
-    UnknownPixelFormat { code: u32 },
+    UnknownPixelFormat {
+        /// The header's `pixel_format` code.
+        code: u32,
+    },
+    /// The header's width or height is zero.
     #[error("empty image ({width}x{height} per eye)")]
-    Empty { width: u32, height: u32 },
+    Empty {
+        /// Width of one eye, pixels.
+        width: u32,
+        /// Height of one eye, pixels.
+        height: u32,
+    },
+    /// A YUYV frame's eye width is odd.
     #[error("YUYV eye width {width} is odd (YUYV pixels come in pairs)")]
-    OddYuyvWidth { width: u32 },
+    OddYuyvWidth {
+        /// Width of one eye, pixels.
+        width: u32,
+    },
+    /// The row stride cannot hold both eyes' pixels of one row.
     #[error("row stride {stride} is shorter than a side-by-side row of {row} bytes")]
-    StrideTooShort { stride: u32, row: u64 },
+    StrideTooShort {
+        /// The header's row stride, bytes.
+        stride: u32,
+        /// Bytes of both eyes' pixels in one row.
+        row: u64,
+    },
+    /// The payload is not exactly `height · row_stride` bytes.
     #[error("payload of {len} bytes, but the header says {expected} ({height} rows of {stride} bytes)")]
     LengthMismatch {
+        /// Payload size received, bytes.
         len: usize,
+        /// Payload size the header implies, bytes.
         expected: u64,
+        /// The header's height, rows.
         height: u32,
+        /// The header's row stride, bytes.
         stride: u32,
     },
 }
@@ -186,6 +212,7 @@ impl From<Status> for u32 {
 #[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("PhotoposePose")]
 pub struct PoseMsg {
+    /// [`FrameHeader::frame_id`] of the frame the pose was estimated from.
     pub frame_id: u64,
     /// CLOCK_MONOTONIC when the frame was exposed or received, ns.
     pub capture_time_ns: u64,
