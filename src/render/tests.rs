@@ -2,7 +2,7 @@
 
 use super::*;
 use image::Rgb;
-use nalgebra::Point2;
+use nalgebra::{Point2, UnitQuaternion, Vector3};
 
 const RED: [u8; 3] = [255, 0, 0];
 const BLUE: [u8; 3] = [0, 0, 255];
