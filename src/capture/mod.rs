@@ -2,13 +2,15 @@
 //! format, and recording.
 //!
 //! A [`FrameSource`] writes each side-by-side frame straight into the buffer it is
-//! given (a sample loaned from the iceoryx2 publisher), so publishing a frame costs no
-//! allocation and no extra copy. Sources now:
+//! given (a sample loaned from the iceoryx2 publisher, not zeroed first: see
+//! [`frame_buf`]), so publishing a frame costs no allocation and no extra copy. Sources
+//! now:
 //! - `synthetic[:SCENE.toml]` ([`synthetic`]): the synthetic camera, its card moving
 //!   along a scripted loop, with each frame's ground truth;
 //! - `replay:DIR` ([`replay`]): a recorded [`sequence`], at its recorded or a fixed rate;
 //! - `zed` ([`zed`]): a ZED 2i over V4L2 (cargo feature `zed`).
 
+pub mod frame_buf;
 pub mod record;
 pub mod replay;
 pub mod sequence;
@@ -23,6 +25,8 @@ use nalgebra::Isometry3;
 use crate::estimator::pose::PoseSize;
 use crate::transport::messages::{PoseMsg, Status};
 use crate::vision::PixelFormat;
+
+pub use frame_buf::{FrameBuf, Written};
 
 /// Where frames come from.
 #[derive(Debug, Clone, PartialEq)]
@@ -64,6 +68,9 @@ pub enum SourceError {
     Frame { path: PathBuf, message: String },
     #[error("{0}")]
     Setup(String),
+    /// The buffer lent for a frame is not the frame's size.
+    #[error("a {buffer}-byte buffer cannot hold a {frame}-byte frame")]
+    BufferSize { buffer: usize, frame: usize },
 }
 
 /// Layout of the side-by-side frames of a source.
@@ -71,7 +78,9 @@ pub enum SourceError {
 pub struct Geometry {
     /// Size of one eye, pixels.
     pub width: u32,
+    /// Height of each eye and of the side-by-side frame, pixels.
     pub height: u32,
+    /// How each pixel is stored.
     pub format: PixelFormat,
 }
 
@@ -90,7 +99,9 @@ impl Geometry {
 /// The true pose and size of the target in a frame (hand frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Truth {
+    /// Pose of the target's model frame in the hand frame, mm.
     pub hand_from_model: Isometry3<f64>,
+    /// Length and breadth of the target, mm.
     pub size_mm: [f64; 2],
 }
 
@@ -117,11 +128,13 @@ impl Truth {
 pub struct FrameInfo {
     /// CLOCK_MONOTONIC when the frame was taken, ns.
     pub capture_time_ns: u64,
+    /// The target's true pose and size in this frame, when the source knows it.
     pub truth: Option<Truth>,
 }
 
 /// A camera-like source of side-by-side frames.
 pub trait FrameSource {
+    /// Layout of every frame this source writes.
     fn geometry(&self) -> Geometry;
 
     /// One line for logs: what is being captured.
@@ -130,9 +143,16 @@ pub trait FrameSource {
     /// When the next frame is due; `None` once the stream has ended.
     fn next_due(&mut self) -> Option<Instant>;
 
-    /// Writes the due frame into `buf` ([`Geometry::frame_len`] bytes); `Ok(None)` when
-    /// no frame came this time (the caller asks again).
-    fn fill(&mut self, buf: &mut [u8]) -> Result<Option<FrameInfo>, SourceError>;
+    /// Writes the due frame into `buf` ([`Geometry::frame_len`] bytes, possibly
+    /// uninitialised), handing back the proof that every byte was written; `Ok(None)`
+    /// when no frame came this time (the caller asks again).
+    fn write_frame<'a>(&mut self, buf: FrameBuf<'a>) -> Result<Option<(FrameInfo, Written<'a>)>, SourceError>;
+
+    /// [`FrameSource::write_frame`] into an initialised buffer, e.g. one `Vec` reused
+    /// for every frame.
+    fn fill(&mut self, buf: &mut [u8]) -> Result<Option<FrameInfo>, SourceError> {
+        Ok(self.write_frame(FrameBuf::from_init(buf))?.map(|(info, _)| info))
+    }
 
     /// One line for the log when capture ends (counters of faults), if the source has one.
     fn summary(&self) -> Option<String> {

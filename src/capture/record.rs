@@ -15,7 +15,7 @@ use crossbeam::channel::{bounded, Receiver, Sender};
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
 
-use super::sequence::{FrameRecord, SequenceError, SequenceInfo, CSV_HEADER, FRAMES_FILE, INFO_FILE};
+use super::sequence::{FrameRecord, FramesCsv, SequenceError, SequenceInfo, FRAMES_FILE, INFO_FILE};
 use super::{FrameInfo, Geometry};
 use crate::vision::PixelFormat;
 
@@ -61,8 +61,8 @@ impl Recorder {
         })?;
         std::fs::write(&info_path, text).map_err(write_error(&info_path))?;
         let csv_path = dir.join(FRAMES_FILE);
-        let mut csv = BufWriter::new(File::create(&csv_path).map_err(write_error(&csv_path))?);
-        writeln!(csv, "{CSV_HEADER}").map_err(write_error(&csv_path))?;
+        let file = File::create(&csv_path).map_err(write_error(&csv_path))?;
+        let mut csv = FramesCsv::new(file).map_err(write_error(&csv_path))?;
 
         let (give_back, free) = bounded(QUEUE);
         for _ in 0..QUEUE {
@@ -84,9 +84,7 @@ impl Recorder {
                         file,
                         truth: job.info.truth,
                     };
-                    writeln!(csv, "{}", rec.to_csv())
-                        .and_then(|()| csv.flush())
-                        .map_err(write_error(&csv_path))?;
+                    csv.write(&rec).map_err(write_error(&csv_path))?;
                     written += 1;
                     // The recorder may be gone already; the buffer is then not needed.
                     let _ = give_back.send(job.bytes);

@@ -1,6 +1,7 @@
 //! `replay:DIR`: plays a recorded [`Sequence`] as a camera would, at its recorded pace or
 //! a fixed rate, optionally looping. A reader thread decodes frames ahead into a few
-//! recycled buffers; each due frame is copied into the caller's buffer.
+//! recycled buffers; each due frame is copied into the caller's buffer (a loaned
+//! sample: decoding straight into it would hold the sample while the file is read).
 
 use std::fs::File;
 use std::io::{BufReader, Read};
@@ -12,7 +13,7 @@ use image::codecs::png::PngDecoder;
 use image::{ColorType, ImageDecoder};
 
 use super::sequence::{due_offset, Sequence};
-use super::{FrameInfo, FrameSource, Geometry, SourceError, Truth};
+use super::{FrameBuf, FrameInfo, FrameSource, Geometry, SourceError, Truth, Written};
 use crate::transport::messages::monotonic_ns;
 use crate::vision::PixelFormat;
 
@@ -156,25 +157,19 @@ impl FrameSource for ReplaySource {
         Some(self.start + due_offset(&self.times, self.played, self.fps))
     }
 
-    fn fill(&mut self, buf: &mut [u8]) -> Result<Option<FrameInfo>, SourceError> {
+    fn write_frame<'a>(&mut self, buf: FrameBuf<'a>) -> Result<Option<(FrameInfo, Written<'a>)>, SourceError> {
         let (index, bytes) = self
             .decoded
             .recv()
             .map_err(|_| SourceError::Setup(format!("the replay reader of {} stopped", self.dir.display())))??;
-        let Some(out) = buf.get_mut(..bytes.len()) else {
-            return Err(SourceError::Setup(format!(
-                "a {}-byte buffer cannot hold a {}-byte frame",
-                buf.len(),
-                bytes.len()
-            )));
-        };
-        out.copy_from_slice(&bytes);
+        let frame = buf.copy_from(&bytes)?;
         // The reader may be gone after the last frame; the buffer is then not needed.
         let _ = self.recycle.send(bytes);
         self.played += 1;
-        Ok(Some(FrameInfo {
+        let info = FrameInfo {
             capture_time_ns: monotonic_ns(),
             truth: self.truth[index],
-        }))
+        };
+        Ok(Some((info, frame)))
     }
 }

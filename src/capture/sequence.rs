@@ -15,6 +15,7 @@
 //! Times are CLOCK_MONOTONIC nanoseconds of the recording; replay uses their
 //! differences for pacing ([`due_offset`]).
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -25,11 +26,13 @@ use super::{Geometry, Truth};
 use crate::camera::geometry::{is_unit_wxyz, w_nonnegative, wxyz_norm, FILE_UNIT_TOLERANCE};
 use crate::vision::PixelFormat;
 
-/// Format tag and version of `sequence.toml`.
+/// Format tag of `sequence.toml`.
 pub const FORMAT: &str = "photopose-sequence";
+/// Version of the sequence format this build reads and writes.
 pub const VERSION: u32 = 1;
-/// File names inside a sequence directory.
+/// The sequence's description, inside a sequence directory.
 pub const INFO_FILE: &str = "sequence.toml";
+/// The frame list, inside a sequence directory.
 pub const FRAMES_FILE: &str = "frames.csv";
 /// Header line of [`FRAMES_FILE`].
 pub const CSV_HEADER: &str = "frame_id,capture_time_ns,file,x_mm,y_mm,z_mm,qw,qx,qy,qz,l_mm,b_mm";
@@ -57,17 +60,23 @@ pub enum SequenceError {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SequenceInfo {
+    /// Always [`FORMAT`].
     pub format: String,
+    /// [`VERSION`] when written by this build.
     pub version: u32,
     /// Size of one eye, pixels.
     pub width: u32,
+    /// Height of the frames, pixels.
     pub height: u32,
+    /// `"RGB8"` or `"YUYV"`.
     pub pixel_format: String,
+    /// What was recorded (the `--source` argument), informational.
     #[serde(default)]
     pub source: String,
 }
 
 impl SequenceInfo {
+    /// The description of a recording of `geometry` frames from `source`.
     pub fn new(geometry: Geometry, source: &str) -> Self {
         Self {
             format: FORMAT.into(),
@@ -117,73 +126,105 @@ impl SequenceInfo {
 /// One line of `frames.csv`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameRecord {
+    /// Frame number in the recording.
     pub frame_id: u64,
+    /// CLOCK_MONOTONIC when the frame was taken, ns.
     pub capture_time_ns: u64,
     /// File name inside the sequence directory.
     pub file: String,
+    /// The target's true pose and size, when the source knew it.
     pub truth: Option<Truth>,
 }
 
+/// A [`FrameRecord`] as the columns of [`CSV_HEADER`] (serialised by `csv`, which quotes
+/// a field when it needs to); the nine truth fields are empty when the truth is unknown.
+#[derive(Serialize)]
+struct FrameRow<'a> {
+    frame_id: u64,
+    capture_time_ns: u64,
+    file: &'a str,
+    x_mm: Option<f64>,
+    y_mm: Option<f64>,
+    z_mm: Option<f64>,
+    qw: Option<f64>,
+    qx: Option<f64>,
+    qy: Option<f64>,
+    qz: Option<f64>,
+    l_mm: Option<f64>,
+    b_mm: Option<f64>,
+}
+
 impl FrameRecord {
-    /// The CSV line (no newline).
-    pub fn to_csv(&self) -> String {
-        let truth = match &self.truth {
-            Some(t) => {
-                let p = t.hand_from_model.translation.vector;
-                let q = t.hand_from_model.rotation.into_inner();
-                let [w, x, y, z] = w_nonnegative([q.w, q.i, q.j, q.k]);
-                let [length, width] = t.size_mm;
-                format!("{},{},{},{w},{x},{y},{z},{length},{width}", p.x, p.y, p.z)
-            }
-            None => ",,,,,,,,".into(),
+    /// The row written for this record: the quaternion with `w ≥ 0`.
+    fn row(&self) -> FrameRow<'_> {
+        let mut row = FrameRow {
+            frame_id: self.frame_id,
+            capture_time_ns: self.capture_time_ns,
+            file: &self.file,
+            x_mm: None,
+            y_mm: None,
+            z_mm: None,
+            qw: None,
+            qx: None,
+            qy: None,
+            qz: None,
+            l_mm: None,
+            b_mm: None,
         };
-        format!("{},{},{},{truth}", self.frame_id, self.capture_time_ns, self.file)
+        if let Some(t) = &self.truth {
+            let p = t.hand_from_model.translation.vector;
+            let q = t.hand_from_model.rotation.into_inner();
+            [row.x_mm, row.y_mm, row.z_mm] = [Some(p.x), Some(p.y), Some(p.z)];
+            [row.qw, row.qx, row.qy, row.qz] = w_nonnegative([q.w, q.i, q.j, q.k]).map(Some);
+            [row.l_mm, row.b_mm] = t.size_mm.map(Some);
+        }
+        row
+    }
+
+    /// The CSV line (no newline), as [`FramesCsv`] writes it.
+    pub fn to_csv(&self) -> String {
+        let mut out = FramesCsv {
+            csv: csv::WriterBuilder::new().has_headers(false).from_writer(Vec::new()),
+        };
+        // Writing into a Vec cannot fail.
+        let bytes = out.write(self).ok().and_then(|()| out.csv.into_inner().ok());
+        String::from_utf8(bytes.unwrap_or_default())
+            .unwrap_or_default()
+            .trim_end()
+            .to_string()
     }
 
     /// Parses one CSV line; the message says what is wrong.
     pub fn parse(line: &str) -> Result<Self, String> {
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let mut reader = csv_reader(line.as_bytes());
+        match reader.records().next() {
+            Some(Ok(record)) => Self::from_fields(&record),
+            Some(Err(e)) => Err(e.to_string()),
+            None => Err("expected 12 comma-separated fields, found 0".into()),
+        }
+    }
+
+    /// Checks and converts the (trimmed) fields of one line.
+    fn from_fields(fields: &csv::StringRecord) -> Result<Self, String> {
         if fields.len() != 12 {
             return Err(format!("expected 12 comma-separated fields, found {}", fields.len()));
         }
         let int = |i: usize, name: &str| {
             fields[i]
                 .parse::<u64>()
-                .map_err(|_| format!("{name} {:?} is not a non-negative integer", fields[i]))
+                .map_err(|_| format!("{name} {:?} is not a non-negative integer", &fields[i]))
         };
         let (frame_id, capture_time_ns) = (int(0, "frame_id")?, int(1, "capture_time_ns")?);
-        let file = fields[2];
+        let file = &fields[2];
         if file.is_empty() || file.contains('/') || file.contains('\\') || file.starts_with('.') {
             return Err(format!(
                 "file {file:?} must be a plain file name in the sequence directory"
             ));
         }
-        let truth = if fields[3..].iter().all(|f| f.is_empty()) {
+        let truth = if fields.iter().skip(3).all(str::is_empty) {
             None
         } else {
-            let mut v = [0.0; 9];
-            for (k, x) in v.iter_mut().enumerate() {
-                *x = fields[3 + k]
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|x| x.is_finite())
-                    .ok_or_else(|| format!("truth field {} {:?} is not a finite number", 4 + k, fields[3 + k]))?;
-            }
-            let wxyz = [v[3], v[4], v[5], v[6]];
-            if !is_unit_wxyz(wxyz, FILE_UNIT_TOLERANCE) {
-                return Err(format!("truth quaternion has norm {:.4}, not 1", wxyz_norm(wxyz)));
-            }
-            let q = Quaternion::new(v[3], v[4], v[5], v[6]);
-            if v[7] <= 0.0 || v[8] <= 0.0 {
-                return Err("truth size must be positive".into());
-            }
-            Some(Truth {
-                hand_from_model: Isometry3::from_parts(
-                    Translation3::from(Vector3::new(v[0], v[1], v[2])),
-                    UnitQuaternion::from_quaternion(q),
-                ),
-                size_mm: [v[7], v[8]],
-            })
+            Some(truth_from_fields(fields)?)
         };
         Ok(Self {
             frame_id,
@@ -194,12 +235,75 @@ impl FrameRecord {
     }
 }
 
+/// The truth in fields 4 to 12 of a line: position, unit quaternion, positive size.
+fn truth_from_fields(fields: &csv::StringRecord) -> Result<Truth, String> {
+    let mut v = [0.0; 9];
+    for (k, x) in v.iter_mut().enumerate() {
+        *x = fields[3 + k]
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("truth field {} {:?} is not a finite number", 4 + k, &fields[3 + k]))?;
+    }
+    let wxyz = [v[3], v[4], v[5], v[6]];
+    if !is_unit_wxyz(wxyz, FILE_UNIT_TOLERANCE) {
+        return Err(format!("truth quaternion has norm {:.4}, not 1", wxyz_norm(wxyz)));
+    }
+    let q = Quaternion::new(v[3], v[4], v[5], v[6]);
+    if v[7] <= 0.0 || v[8] <= 0.0 {
+        return Err("truth size must be positive".into());
+    }
+    Ok(Truth {
+        hand_from_model: Isometry3::from_parts(
+            Translation3::from(Vector3::new(v[0], v[1], v[2])),
+            UnitQuaternion::from_quaternion(q),
+        ),
+        size_mm: [v[7], v[8]],
+    })
+}
+
+/// A reader of `frames.csv` text: no header handling (the caller checks the first
+/// line), any number of fields per line (checked per line), fields trimmed.
+fn csv_reader(text: &[u8]) -> csv::Reader<&[u8]> {
+    csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(text)
+}
+
+/// Writes `frames.csv`: the header line, then one line per [`FrameRecord`], each
+/// flushed, so a recording cut short still reads back.
+pub struct FramesCsv<W: Write> {
+    csv: csv::Writer<W>,
+}
+
+impl<W: Write> FramesCsv<W> {
+    /// Starts the file with [`CSV_HEADER`].
+    pub fn new(out: W) -> std::io::Result<Self> {
+        let mut csv = csv::WriterBuilder::new().has_headers(false).from_writer(out);
+        csv.write_record(CSV_HEADER.split(','))?;
+        csv.flush()?;
+        Ok(Self { csv })
+    }
+
+    /// Appends the line of `rec` and flushes it.
+    pub fn write(&mut self, rec: &FrameRecord) -> std::io::Result<()> {
+        self.csv.serialize(rec.row())?;
+        self.csv.flush()
+    }
+}
+
 /// A sequence directory's description and frame list.
 #[derive(Debug, Clone)]
 pub struct Sequence {
+    /// The sequence directory.
     pub dir: PathBuf,
+    /// Its `sequence.toml`.
     pub info: SequenceInfo,
+    /// The frame layout, checked.
     pub geometry: Geometry,
+    /// The lines of `frames.csv`, capture times not decreasing.
     pub frames: Vec<FrameRecord>,
 }
 
@@ -221,22 +325,30 @@ impl Sequence {
             path: csv_path.clone(),
             source,
         })?;
-        let line_error = |line: usize, message: String| SequenceError::Line {
+        let line_error = |line: u64, message: String| SequenceError::Line {
             path: csv_path.clone(),
-            line,
+            line: line as usize,
             message,
         };
-        let mut lines = text.lines().enumerate();
-        match lines.next() {
-            Some((_, h)) if h.trim() == CSV_HEADER => {}
+        let mut records = csv_reader(text.as_bytes()).into_records();
+        match records.next() {
+            Some(Ok(h)) if h.iter().eq(CSV_HEADER.split(',')) => {}
             _ => return Err(line_error(1, format!("the first line must be the header {CSV_HEADER}"))),
         }
         let mut frames: Vec<FrameRecord> = Vec::new();
-        for (i, line) in lines.filter(|(_, l)| !l.trim().is_empty()) {
-            let rec = FrameRecord::parse(line).map_err(|m| line_error(i + 1, m))?;
+        for record in records {
+            let record = record.map_err(|e| {
+                let line = e.position().map_or(0, csv::Position::line);
+                line_error(line, e.to_string())
+            })?;
+            if record.len() == 1 && record[0].is_empty() {
+                continue; // a blank line
+            }
+            let line = record.position().map_or(0, csv::Position::line);
+            let rec = FrameRecord::from_fields(&record).map_err(|m| line_error(line, m))?;
             if let Some(prev) = frames.last() {
                 if rec.capture_time_ns < prev.capture_time_ns {
-                    return Err(line_error(i + 1, "capture times must not decrease".into()));
+                    return Err(line_error(line, "capture times must not decrease".into()));
                 }
             }
             frames.push(rec);
@@ -288,11 +400,11 @@ mod tests {
             ),
             size_mm: [180.0, 159.0],
         };
-        for truth in [Some(truth), None] {
+        for (truth, file) in [(Some(truth), "000007.png"), (None, "a, \"b\".png")] {
             let rec = FrameRecord {
                 frame_id: 7,
                 capture_time_ns: 123_456_789,
-                file: "000007.png".into(),
+                file: file.into(),
                 truth,
             };
             let back = FrameRecord::parse(&rec.to_csv()).unwrap();
@@ -368,8 +480,26 @@ mod tests {
         .unwrap();
         let e = Sequence::open(&dir).unwrap_err().to_string();
         assert!(e.contains("frames.csv:3") && e.contains("decrease"), "{e}");
-        std::fs::write(dir.join(FRAMES_FILE), format!("{CSV_HEADER}\n0,100,a.yuyv,,,,,,,,,\n")).unwrap();
+        let mut written = Vec::new();
+        let mut csv = FramesCsv::new(&mut written).unwrap();
+        for (frame_id, file) in [(0, "a.yuyv"), (1, "b, c.yuyv")] {
+            let rec = FrameRecord {
+                frame_id,
+                capture_time_ns: 100,
+                file: file.into(),
+                truth: None,
+            };
+            csv.write(&rec).unwrap();
+        }
+        drop(csv);
+        let text = String::from_utf8(written).unwrap();
+        assert_eq!(
+            text,
+            format!("{CSV_HEADER}\n0,100,a.yuyv,,,,,,,,,\n1,100,\"b, c.yuyv\",,,,,,,,,\n")
+        );
+        std::fs::write(dir.join(FRAMES_FILE), format!("{text}\n  \n")).unwrap();
         let seq = Sequence::open(&dir).unwrap();
+        assert_eq!(seq.frames[1].file, "b, c.yuyv");
         assert_eq!(seq.geometry.frame_len(), 2 * 4 * 2 * 2);
         std::fs::write(
             dir.join(INFO_FILE),

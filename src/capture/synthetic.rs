@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
-use super::{FrameInfo, FrameSource, Geometry, SourceError, Truth};
+use super::{FrameBuf, FrameInfo, FrameSource, Geometry, SourceError, Truth, Written};
 use crate::config::Config;
 use crate::render::{Renderer, Scene, SceneSpec};
 use crate::transport::messages::monotonic_ns;
@@ -143,18 +143,22 @@ impl FrameSource for SyntheticSource {
         Some(self.start + Duration::from_secs_f64(self.frames as f64 / self.fps))
     }
 
-    fn fill(&mut self, buf: &mut [u8]) -> Result<Option<FrameInfo>, SourceError> {
+    fn write_frame<'a>(&mut self, buf: FrameBuf<'a>) -> Result<Option<(FrameInfo, Written<'a>)>, SourceError> {
         let pose = self.trajectory.pose_at(self.frames as f64 / self.fps);
         self.scene.card.hand_from_model = pose;
-        self.renderer.render_into(&self.scene, buf);
+        // The renderer writes initialised bytes only (it starts with a copy of the empty
+        // scene), so loaned memory is zeroed first.
+        let mut frame = buf.initialised();
+        self.renderer.render_into(&self.scene, frame.bytes_mut());
         self.frames += 1;
-        Ok(Some(FrameInfo {
+        let info = FrameInfo {
             capture_time_ns: monotonic_ns(),
             truth: Some(Truth {
                 hand_from_model: pose,
                 size_mm: self.scene.card.size_mm,
             }),
-        }))
+        };
+        Ok(Some((info, frame)))
     }
 }
 

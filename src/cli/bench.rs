@@ -72,6 +72,7 @@ struct Report {
     tracking_frame_max_ms: f64,
 }
 
+/// Runs the three measurements, printing each as it is done (or one JSON object).
 pub fn run(args: &BenchArgs) -> Result<()> {
     if args.individuals == 0 || args.frames < 2 {
         return Err(anyhow!("--individuals must be ≥ 1 and --frames ≥ 2"));
@@ -84,9 +85,74 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             println!("{line}");
         }
     };
+    let kernel = kernel(args, &config, &model, &images, &say)?;
 
-    // The kernel: candidates the cameras can see (random pixel, depth, size, tilt).
-    let prepared = Prepared::new(&model, &images, &config)?;
+    // One-shot estimate, frame preparation included.
+    let start = Instant::now();
+    let outcome = oneshot::run(&model, &images, &config, 1000, config.ga.seed, &mut |_| {})?;
+    let oneshot = start.elapsed().as_secs_f64();
+    say(format!(
+        "one-shot estimate, 1000 generations ({:?} mode): {oneshot:.3} s ({} evaluations, F {:.3})",
+        config.ga.mode, outcome.evaluations, outcome.fitness.f
+    ));
+
+    let (acquisition, frames) = tracking(args, &config)?;
+    say(format!(
+        "tracking {} (HD 60 fps, up to 150 mm/s), {} frames: acquisition {acquisition:.2} s, then per frame p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms",
+        args.scene.display(),
+        args.frames,
+        frames.median(),
+        frames.percentile(99.0),
+        frames.max()
+    ));
+    if args.json {
+        let report = Report {
+            threads: kernel.threads,
+            points_per_individual: kernel.per_individual,
+            individuals_per_s_1t: kernel.one.individuals_per_s,
+            points_per_s_1t: kernel.one.points_per_s,
+            ns_per_point_1t: kernel.one.ns_per_point,
+            individuals_per_s_all: kernel.all.individuals_per_s,
+            points_per_s_all: kernel.all.points_per_s,
+            ns_per_point_all: kernel.all.ns_per_point,
+            oneshot_1000_s: oneshot,
+            tracking_frames: args.frames,
+            tracking_acquisition_s: acquisition,
+            tracking_frame_p50_ms: frames.median(),
+            tracking_frame_p99_ms: frames.percentile(99.0),
+            tracking_frame_max_ms: frames.max(),
+        };
+        println!("{}", serde_json::to_string(&report)?);
+    }
+    Ok(())
+}
+
+/// Throughput of the fitness kernel on one thread or several.
+#[derive(Debug, Clone, Copy)]
+struct Throughput {
+    individuals_per_s: f64,
+    points_per_s: f64,
+    ns_per_point: f64,
+}
+
+/// The kernel's figures: one thread, `threads` threads.
+struct KernelFigures {
+    threads: usize,
+    per_individual: usize,
+    one: Throughput,
+    all: Throughput,
+}
+
+/// Times the fitness kernel on `--individuals` candidates the cameras can see (random
+/// pixel, depth, size, tilt), on one thread and on all.
+fn kernel(
+    args: &BenchArgs,
+    config: &Config,
+    model: &PhotoModel,
+    images: &StereoImages,
+    say: &dyn Fn(String),
+) -> Result<KernelFigures> {
+    let prepared = Prepared::new(model, images, config)?;
     let points = prepared.points[0].len();
     let per_individual = 2 * points;
     let one = Problem::new(&prepared.scorer, &prepared.levels, &prepared.points, prepared.bounds, 1);
@@ -105,39 +171,41 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         args.sbs.display(),
         points
     ));
-    let [(ind_1, pts_1, ns_1), (ind_n, pts_n, ns_n)] = [&one, &all].map(|problem| {
+    let [one, all] = [&one, &all].map(|problem| {
         let mut out = vec![Fitness::default(); genes.len()];
         problem.evaluate_batch(0, &genes, &mut out); // warm-up: caches, thread pool
         let start = Instant::now();
         problem.evaluate_batch(0, &genes, &mut out);
         let s = start.elapsed().as_secs_f64();
         let evaluated = (genes.len() * per_individual) as f64;
-        (genes.len() as f64 / s, evaluated / s, s * 1e9 / evaluated)
+        Throughput {
+            individuals_per_s: genes.len() as f64 / s,
+            points_per_s: evaluated / s,
+            ns_per_point: s * 1e9 / evaluated,
+        }
     });
-    say(format!(
-        "  1 thread : {:>8.0} individuals/s, {:>6.1} M point evaluations/s, {ns_1:.2} ns per point",
-        ind_1,
-        pts_1 * 1e-6
-    ));
-    say(format!(
-        "  {threads} threads: {:>8.0} individuals/s, {:>6.1} M point evaluations/s, {ns_n:.2} ns per point",
-        ind_n,
-        pts_n * 1e-6
-    ));
+    for (t, name) in [(one, "1 thread ".to_string()), (all, format!("{threads} threads"))] {
+        say(format!(
+            "  {name}: {:>8.0} individuals/s, {:>6.1} M point evaluations/s, {:.2} ns per point",
+            t.individuals_per_s,
+            t.points_per_s * 1e-6,
+            t.ns_per_point
+        ));
+    }
+    Ok(KernelFigures {
+        threads,
+        per_individual,
+        one,
+        all,
+    })
+}
 
-    // One-shot estimate, frame preparation included.
-    let start = Instant::now();
-    let outcome = oneshot::run(&model, &images, &config, 1000, config.ga.seed, &mut |_| {})?;
-    let oneshot = start.elapsed().as_secs_f64();
-    say(format!(
-        "one-shot estimate, 1000 generations ({:?} mode): {oneshot:.3} s ({} evaluations, F {:.3})",
-        config.ga.mode, outcome.evaluations, outcome.fitness.f
-    ));
-
-    // Tracking on a synthetic sequence, rendering excluded.
+/// Tracks `--frames` frames of the synthetic camera on `--scene`, rendering excluded:
+/// the acquisition (first frame), s, and each later frame's time, ms.
+fn tracking(args: &BenchArgs, config: &Config) -> Result<(f64, Samples)> {
     let spec = SceneSpec::load(&args.scene)?;
-    let tracked = super::scene_model(&spec, &config)?;
-    let mut source = SyntheticSource::open(&args.scene, &config, 60.0, 150.0)?;
+    let tracked = super::scene_model(&spec, config)?;
+    let mut source = SyntheticSource::open(&args.scene, config, 60.0, 150.0)?;
     let geometry = source.geometry();
     let mut buf = vec![0u8; geometry.frame_len()];
     let mut tracker = StreamTracker::new(tracked, config.clone());
@@ -162,33 +230,5 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             times.push(s * 1e3);
         }
     }
-    let frames = Samples::new(times);
-    say(format!(
-        "tracking {} (HD 60 fps, up to 150 mm/s), {} frames: acquisition {acquisition:.2} s, then per frame p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms",
-        args.scene.display(),
-        args.frames,
-        frames.median(),
-        frames.percentile(99.0),
-        frames.max()
-    ));
-    if args.json {
-        let report = Report {
-            threads,
-            points_per_individual: per_individual,
-            individuals_per_s_1t: ind_1,
-            points_per_s_1t: pts_1,
-            ns_per_point_1t: ns_1,
-            individuals_per_s_all: ind_n,
-            points_per_s_all: pts_n,
-            ns_per_point_all: ns_n,
-            oneshot_1000_s: oneshot,
-            tracking_frames: args.frames,
-            tracking_acquisition_s: acquisition,
-            tracking_frame_p50_ms: frames.median(),
-            tracking_frame_p99_ms: frames.percentile(99.0),
-            tracking_frame_max_ms: frames.max(),
-        };
-        println!("{}", serde_json::to_string(&report)?);
-    }
-    Ok(())
+    Ok((acquisition, Samples::new(times)))
 }

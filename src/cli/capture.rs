@@ -1,18 +1,21 @@
 //! `photopose capture`: publishes side-by-side frames on `photopose/stereo_frames`,
-//! written by the source straight into loaned shared memory, and each frame's ground
-//! truth (when known) on `photopose/truth`; optionally records them.
+//! written by the source straight into loaned shared memory (not zeroed first: an HD
+//! frame is megabytes the source overwrites anyway), and each frame's ground truth
+//! (when known) on `photopose/truth`; optionally records them. Every 2 s it logs the
+//! frame rate and how long a frame takes from loan to send.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Result};
 
+use crate::capture::frame_buf::write_uninit;
 use crate::capture::record::Recorder;
 use crate::capture::replay::ReplaySource;
 use crate::capture::synthetic::SyntheticSource;
-use crate::capture::{FrameSource, Source};
+use crate::capture::{FrameSource, Geometry, Source};
 use crate::config::Config;
-use crate::transport::ipc::{send_pose, wake_up, Ipc};
+use crate::transport::ipc::{send_pose, wake_up, FramePublisher, Ipc, PosePublisher, Waker};
 use crate::transport::messages::{monotonic_ns, FrameHeader, FRAMES_SERVICE, TRUTH_SERVICE};
 
 /// Publish stereo frames.
@@ -53,54 +56,98 @@ pub struct CaptureArgs {
 /// Default synthetic frame rate: the ZED 2i's HD rate.
 const DEFAULT_FPS: f64 = 60.0;
 
+/// How often the frame rate and the cost of publishing a frame are logged.
+const REPORT_EVERY: Duration = Duration::from_secs(2);
+
+/// Opens the source, publishes its frames until it ends, `--seconds` pass or a stop
+/// is requested, and finishes the recording.
 pub fn run(args: &CaptureArgs) -> Result<()> {
+    check_args(args)?;
+    let config = Config::load(args.config.as_deref())?;
+    let (mut source, calibration) = open_source(args, &config)?;
+    let geometry = source.geometry();
+    let mut recorder = match &args.record {
+        Some(dir) => Some(start_recording(dir, args, geometry, calibration.as_deref())?),
+        None => None,
+    };
+    let ipc = Ipc::new("photopose-capture")?;
+    let mut out = Outlets {
+        frames: ipc.frame_publisher(geometry.frame_len())?,
+        waker: ipc.waker(FRAMES_SERVICE)?,
+        truth: ipc.pose_publisher(TRUTH_SERVICE)?,
+        recorder: recorder.as_mut(),
+    };
+    tracing::info!("capture: {}", source.describe());
+    let published = publish_all(args, &ipc, source.as_mut(), &mut out)?;
+    tracing::info!("capture: {published} frames published");
+    if let Some(summary) = source.summary() {
+        tracing::info!("capture: {summary}");
+    }
+    if let (Some(rec), Some(dir)) = (recorder, &args.record) {
+        let skipped = rec.skipped;
+        let written = rec.finish()?;
+        let dir = dir.display();
+        tracing::info!("capture: recorded {written} frames into {dir} ({skipped} left out: the disk was behind)");
+    }
+    Ok(())
+}
+
+/// Rejects option values and combinations that cannot work.
+fn check_args(args: &CaptureArgs) -> Result<()> {
     if let Some(fps) = args.fps.filter(|f| !(f.is_finite() && *f > 0.0)) {
         bail!("--fps {fps} must be a positive number");
     }
     if !(args.speed.is_finite() && args.speed >= 0.0) {
         bail!("--speed {} must be a number ≥ 0", args.speed);
     }
-    let source = Source::parse(&args.source)?;
-    if source != Source::Zed && (args.resolution.is_some() || args.device.is_some()) {
+    let zed = Source::parse(&args.source)? == Source::Zed;
+    if !zed && (args.resolution.is_some() || args.device.is_some()) {
         bail!("--resolution and --device apply to --source zed only");
     }
-    let config = Config::load(args.config.as_deref())?;
-    let mut calibration = None;
-    let mut source: Box<dyn FrameSource> = match source {
-        Source::Synthetic(scene) => Box::new(SyntheticSource::open(
-            &scene,
-            &config,
-            args.fps.unwrap_or(DEFAULT_FPS),
-            args.speed,
-        )?),
-        Source::Replay(dir) => Box::new(ReplaySource::open(&dir, args.fps, args.looping)?),
-        Source::Zed => {
-            let (zed, file) = zed::open(args, &config)?;
-            calibration = Some(file);
-            zed
+    Ok(())
+}
+
+/// The frame source of `--source`, and the calibration file its frames need (zed).
+fn open_source(args: &CaptureArgs, config: &Config) -> Result<(Box<dyn FrameSource>, Option<PathBuf>)> {
+    Ok(match Source::parse(&args.source)? {
+        Source::Synthetic(scene) => {
+            let fps = args.fps.unwrap_or(DEFAULT_FPS);
+            (Box::new(SyntheticSource::open(&scene, config, fps, args.speed)?), None)
         }
-    };
-    let geometry = source.geometry();
-    let mut recorder = match &args.record {
-        Some(dir) => Some(Recorder::create(dir, geometry, &args.source)?),
-        None => None,
-    };
-    if let (Some(dir), Some(file)) = (&args.record, &calibration) {
-        // The recording keeps the calibration its frames need.
+        Source::Replay(dir) => (Box::new(ReplaySource::open(&dir, args.fps, args.looping)?), None),
+        Source::Zed => {
+            let (zed, file) = zed::open(args, config)?;
+            (zed, Some(file))
+        }
+    })
+}
+
+/// Starts recording into `dir`, with a copy of the calibration file the frames need.
+fn start_recording(dir: &Path, args: &CaptureArgs, geometry: Geometry, calibration: Option<&Path>) -> Result<Recorder> {
+    let recorder = Recorder::create(dir, geometry, &args.source)?;
+    if let Some(file) = calibration {
         if let Some(name) = file.file_name() {
             std::fs::copy(file, dir.join(name))
                 .map_err(|e| anyhow!("cannot copy {} into {}: {e}", file.display(), dir.display()))?;
         }
     }
-    let ipc = Ipc::new("photopose-capture")?;
-    let frames = ipc.frame_publisher(geometry.frame_len())?;
-    let waker = ipc.waker(FRAMES_SERVICE)?;
-    let truth = ipc.pose_publisher(TRUTH_SERVICE)?;
-    tracing::info!("capture: {}", source.describe());
+    Ok(recorder)
+}
 
+/// Where each frame goes: the frame service (and its wake-up event), the truth
+/// service, the recording.
+struct Outlets<'r> {
+    frames: FramePublisher,
+    waker: Waker,
+    truth: PosePublisher,
+    recorder: Option<&'r mut Recorder>,
+}
+
+/// Publishes frames as they fall due; the number published.
+fn publish_all(args: &CaptureArgs, ipc: &Ipc, source: &mut dyn FrameSource, out: &mut Outlets) -> Result<u64> {
     let start = Instant::now();
-    let mut report = Instant::now();
-    let (mut published, mut since_report) = (0u64, 0u32);
+    let mut published = 0u64;
+    let mut window = Window::default();
     while let Some(due) = source.next_due() {
         if args.seconds > 0.0 && start.elapsed().as_secs_f64() >= args.seconds {
             break;
@@ -108,55 +155,94 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
         if !ipc.wait(due.saturating_duration_since(Instant::now())) {
             break;
         }
-        let mut sample = frames
-            .loan_slice(geometry.frame_len())
-            .map_err(|e| anyhow!("cannot loan a frame sample: {e:?}"))?;
-        let Some(info) = source.fill(sample.payload_mut())? else {
+        let loaned = Instant::now();
+        if !publish_one(source, out, published)? {
             continue;
-        };
-        let frame_id = published;
-        *sample.user_header_mut() = FrameHeader {
-            frame_id,
-            capture_time_ns: info.capture_time_ns,
-            width: geometry.width,
-            height: geometry.height,
-            pixel_format: geometry.format.code(),
-            row_stride: geometry.row_stride() as u32,
-            publish_time_ns: 0,
-        };
-        if let Some(rec) = recorder.as_mut() {
-            rec.record(frame_id, &info, sample.payload())?;
         }
-        sample.user_header_mut().publish_time_ns = monotonic_ns();
-        sample
-            .send()
-            .map_err(|e| anyhow!("cannot send frame {frame_id}: {e:?}"))?;
-        wake_up(&waker);
-        if let Some(t) = &info.truth {
-            send_pose(&truth, t.pose_msg(frame_id, info.capture_time_ns))?;
-        }
+        window.add(loaned.elapsed());
         published += 1;
-        since_report += 1;
-        if report.elapsed() >= Duration::from_secs(2) {
-            tracing::info!(
-                "capture: frame {frame_id}, {:.1} fps",
-                since_report as f64 / report.elapsed().as_secs_f64()
-            );
-            report = Instant::now();
-            since_report = 0;
+        if window.started.elapsed() >= REPORT_EVERY {
+            tracing::info!("capture: frame {}, {}", published - 1, window.line());
+            window = Window::default();
         }
     }
-    tracing::info!("capture: {published} frames published");
-    if let Some(summary) = source.summary() {
-        tracing::info!("capture: {summary}");
+    Ok(published)
+}
+
+/// Loans a sample, has the source write the frame straight into it (the sample is not
+/// zeroed first), records it, and sends it and its truth as frame `frame_id`. False
+/// when the source had no frame this time.
+fn publish_one(source: &mut dyn FrameSource, out: &mut Outlets, frame_id: u64) -> Result<bool> {
+    let geometry = source.geometry();
+    let mut sample = out
+        .frames
+        .loan_slice_uninit(geometry.frame_len())
+        .map_err(|e| anyhow!("cannot loan a frame sample: {e:?}"))?;
+    let Some(info) = write_uninit(source, sample.payload_mut())? else {
+        return Ok(false);
+    };
+    // SAFETY: `write_uninit` returns a frame only when every byte of the payload it was
+    // given, the whole sample, has been written.
+    let mut sample = unsafe { sample.assume_init() };
+    *sample.user_header_mut() = FrameHeader {
+        frame_id,
+        capture_time_ns: info.capture_time_ns,
+        width: geometry.width,
+        height: geometry.height,
+        pixel_format: geometry.format.code(),
+        row_stride: geometry.row_stride() as u32,
+        publish_time_ns: 0,
+    };
+    if let Some(rec) = out.recorder.as_mut() {
+        rec.record(frame_id, &info, sample.payload())?;
     }
-    if let Some(rec) = recorder {
-        let skipped = rec.skipped;
-        let written = rec.finish()?;
-        let dir = args.record.as_deref().unwrap_or(std::path::Path::new("")).display();
-        tracing::info!("capture: recorded {written} frames into {dir} ({skipped} left out: the disk was behind)");
+    sample.user_header_mut().publish_time_ns = monotonic_ns();
+    sample
+        .send()
+        .map_err(|e| anyhow!("cannot send frame {frame_id}: {e:?}"))?;
+    wake_up(&out.waker);
+    if let Some(t) = &info.truth {
+        send_pose(&out.truth, t.pose_msg(frame_id, info.capture_time_ns))?;
     }
-    Ok(())
+    Ok(true)
+}
+
+/// Frames published since the last report and the time each took from loan to send
+/// (the source writing it, recording, sending).
+struct Window {
+    started: Instant,
+    frames: u32,
+    total: Duration,
+    max: Duration,
+}
+
+impl Default for Window {
+    fn default() -> Self {
+        Self {
+            started: Instant::now(),
+            frames: 0,
+            total: Duration::ZERO,
+            max: Duration::ZERO,
+        }
+    }
+}
+
+impl Window {
+    fn add(&mut self, took: Duration) {
+        self.frames += 1;
+        self.total += took;
+        self.max = self.max.max(took);
+    }
+
+    /// `"59.9 fps, loan → send mean 812 µs, max 1201 µs"`.
+    fn line(&self) -> String {
+        let fps = f64::from(self.frames) / self.started.elapsed().as_secs_f64();
+        let mean = self.total.as_secs_f64() * 1e6 / f64::from(self.frames.max(1));
+        format!(
+            "{fps:.1} fps, loan → send mean {mean:.0} µs, max {:.0} µs",
+            self.max.as_secs_f64() * 1e6
+        )
+    }
 }
 
 /// `--source zed`: the camera in the mode of `--resolution` and `--fps`, and its
@@ -176,6 +262,7 @@ mod zed {
     use crate::capture::FrameSource;
     use crate::config::Config;
 
+    /// The camera in the requested mode, and the calibration file found for it.
     pub fn open(args: &CaptureArgs, config: &Config) -> Result<(Box<dyn FrameSource>, PathBuf)> {
         let mode = Mode::select(args.resolution.as_deref(), args.fps)?;
         let opener = V4l2Opener {
@@ -210,6 +297,7 @@ mod zed {
     use crate::capture::FrameSource;
     use crate::config::Config;
 
+    /// Always an error saying how to build with the camera.
     pub fn open(_: &CaptureArgs, _: &Config) -> Result<(Box<dyn FrameSource>, PathBuf)> {
         bail!("--source zed needs the ZED camera support: rebuild with `cargo build --release --features zed`")
     }

@@ -5,20 +5,21 @@
 //! writes a plot of the true and estimated trajectories.
 
 use std::collections::BTreeMap;
-use std::io::{BufRead, BufReader, IsTerminal, Write};
+use std::io::{BufRead, BufReader, IsTerminal};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::capture::DEFAULT_SCENE;
 use crate::cli::report::plot::{self, Panel, Series, PALETTE};
 use crate::cli::report::stats::Samples;
 use crate::config::Config;
 use crate::render::SceneSpec;
-use crate::transport::ipc::Ipc;
+use crate::transport::ipc::{Ipc, PoseSubscriber};
 use crate::transport::messages::{monotonic_ns, PoseMsg, Status, POSES_SERVICE, TRUTH_SERVICE};
 
 /// Run capture, estimator and controller together on the synthetic camera.
@@ -44,6 +45,8 @@ pub struct DemoArgs {
     pub config: Option<PathBuf>,
 }
 
+/// Runs the demo: the photo-model, the three processes, the live status, then the
+/// summary and the trajectory plot.
 pub fn run(args: &DemoArgs) -> Result<()> {
     if !(args.seconds.is_finite() && args.seconds > 0.0) {
         return Err(anyhow!("--seconds {} must be a positive number", args.seconds));
@@ -55,7 +58,29 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let ipc = Ipc::new("photopose-demo")?;
     let poses = ipc.pose_subscriber(POSES_SERVICE)?;
     let truths = ipc.pose_subscriber(TRUTH_SERVICE)?;
+    let (mut procs, controller) = start_processes(args, &model_path)?;
+    println!(
+        "photopose demo: {} at up to {} mm/s, {} fps, for {} s (Ctrl-C stops early)",
+        args.scene.display(),
+        args.speed,
+        args.fps,
+        args.seconds
+    );
+    let watched = watch(args.seconds, &ipc, [&poses, &truths], &mut procs, controller.as_deref());
+    procs.stop();
+    drop((poses, truths));
+    let _ = std::fs::remove_file(&model_path);
+    let run = watched?;
+    println!("{}", run.summary());
+    plot::save(&run.plot()?, &args.plot)?;
+    println!("trajectory plot: {}", args.plot.display());
+    Ok(())
+}
 
+/// Starts `estimator` (on the model at `model_path`), `capture` (the synthetic camera)
+/// and `controller`, each stopping by itself 10 s after the demo should have; returns
+/// them and the slot holding the controller's last line.
+fn start_processes(args: &DemoArgs, model_path: &Path) -> Result<(Processes, Option<Arc<Mutex<String>>>)> {
     let exe = std::env::current_exe().context("cannot find the photopose executable")?;
     // The children also stop by themselves, should the demo be killed.
     let limit = format!("{}", args.seconds + 10.0);
@@ -64,45 +89,41 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         common.extend(["--config".into(), c.display().to_string()]);
     }
     let mut procs = Processes::default();
-    procs.spawn(
-        &exe,
-        "estimator",
-        &[&["--model", &model_path.display().to_string(), "--seconds", &limit]],
-        &common,
-        false,
-    )?;
+    let model = model_path.display().to_string();
+    let estimator: &[&str] = &["--model", &model, "--seconds", &limit];
+    procs.spawn(&exe, "estimator", &[estimator], &common, false)?;
     let scene = format!("synthetic:{}", args.scene.display());
     let (speed, fps) = (args.speed.to_string(), args.fps.to_string());
-    procs.spawn(
-        &exe,
-        "capture",
-        &[&[
-            "--source",
-            &scene,
-            "--speed",
-            &speed,
-            "--fps",
-            &fps,
-            "--seconds",
-            &limit,
-        ]],
-        &common,
-        false,
-    )?;
-    let controller_line = procs.spawn(&exe, "controller", &[&["--seconds", &limit]], &common, true)?;
+    let capture: &[&str] = &[
+        "--source",
+        &scene,
+        "--speed",
+        &speed,
+        "--fps",
+        &fps,
+        "--seconds",
+        &limit,
+    ];
+    procs.spawn(&exe, "capture", &[capture], &common, false)?;
+    let controller = procs.spawn(&exe, "controller", &[&["--seconds", &limit]], &common, true)?;
+    Ok((procs, controller))
+}
 
-    println!(
-        "photopose demo: {} at up to {} mm/s, {} fps, for {} s (Ctrl-C stops early)",
-        args.scene.display(),
-        args.speed,
-        args.fps,
-        args.seconds
-    );
+/// Collects truths and poses for `seconds` (or until a stop is requested), showing the
+/// status line; fails when a child process exits early.
+fn watch(
+    seconds: f64,
+    ipc: &Ipc,
+    [poses, truths]: [&PoseSubscriber; 2],
+    procs: &mut Processes,
+    controller: Option<&Mutex<String>>,
+) -> Result<Record> {
     let mut run = Record::default();
     let start = Instant::now();
-    let live = std::io::stderr().is_terminal();
+    let bar = status_bar();
+    let every = Duration::from_millis(if bar.is_hidden() { 2000 } else { 250 });
     let mut shown = Instant::now();
-    while ipc.wait(Duration::from_millis(1)) && start.elapsed().as_secs_f64() < args.seconds {
+    while ipc.wait(Duration::from_millis(1)) && start.elapsed().as_secs_f64() < seconds {
         let now = monotonic_ns();
         while let Some(s) = truths.receive().map_err(|e| anyhow!("cannot receive truth: {e:?}"))? {
             run.truth.insert(s.payload().frame_id, *s.payload());
@@ -111,29 +132,36 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             run.poses.push((*s.payload(), now));
         }
         if let Some(line) = procs.exited() {
+            bar.finish_and_clear();
             return Err(anyhow!("{line}; see its message above"));
         }
-        let every = if live { 250 } else { 2000 };
-        if shown.elapsed() >= Duration::from_millis(every) {
+        if shown.elapsed() >= every {
             shown = Instant::now();
-            let controller = controller_line
-                .as_ref()
-                .map(|l| l.lock().map(|s| s.clone()).unwrap_or_default());
-            run.status(start.elapsed().as_secs_f64(), controller.as_deref(), live);
+            let line = run.status(start.elapsed().as_secs_f64());
+            if bar.is_hidden() {
+                eprintln!("{line}");
+            } else {
+                let controller = controller.map(|l| l.lock().map(|s| s.clone()).unwrap_or_default());
+                bar.set_message(format!("{line}\ncontroller: {}", controller.unwrap_or_default()));
+            }
         }
     }
-    if live {
-        eprintln!();
+    bar.finish();
+    Ok(run)
+}
+
+/// The live status on a terminal: two lines (the figures, the controller's last
+/// line) redrawn in place. Hidden when stderr is not a terminal (logs, CI, pipes),
+/// where the status is printed as plain lines every 2 s instead.
+fn status_bar() -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
     }
-    procs.stop();
-    drop((poses, truths));
-    let _ = std::fs::remove_file(&model_path);
-    let summary = run.summary();
-    println!("{summary}");
-    let plot = run.plot();
-    plot::save(&plot, &args.plot)?;
-    println!("trajectory plot: {}", args.plot.display());
-    Ok(())
+    let bar = ProgressBar::new_spinner();
+    if let Ok(style) = ProgressStyle::with_template("{msg}") {
+        bar.set_style(style);
+    }
+    bar
 }
 
 /// The child processes, stopped (SIGTERM, then SIGKILL) when dropped.
@@ -279,7 +307,8 @@ impl Record {
         }
     }
 
-    fn status(&self, elapsed: f64, controller: Option<&str>, live: bool) {
+    /// One line of figures so far, `elapsed` seconds in.
+    fn status(&self, elapsed: f64) -> String {
         let errors = Samples::new(self.tracked().map(|(p, t, _)| position_error(p, t)));
         let latency = Samples::new(
             self.poses
@@ -291,7 +320,7 @@ impl Record {
             .last()
             .map(|(p, _)| crate::client::status_name(p.status))
             .unwrap_or_else(|| "acquiring".into());
-        let line = format!(
+        format!(
             "{elapsed:5.1} s | frames {:5} ({:4.1} fps) | poses {:5} dropped {:3} | {state} | error {:5.1} mm (p95 {:5.1}) | capture→pose p50 {:5.1} ms p99 {:5.1} ms",
             self.truth.len(),
             self.fps(),
@@ -301,17 +330,10 @@ impl Record {
             errors.percentile(95.0),
             latency.median(),
             latency.percentile(99.0)
-        );
-        if live {
-            let controller = controller.unwrap_or("");
-            // Two lines, redrawn in place.
-            eprint!("\r\x1b[2K{line}\n\x1b[2Kcontroller: {controller}\x1b[1A");
-            let _ = std::io::stderr().flush();
-        } else {
-            eprintln!("{line}");
-        }
+        )
     }
 
+    /// The report printed at the end.
     fn summary(&self) -> String {
         let errors = Samples::new(self.tracked().map(|(p, t, _)| position_error(p, t)));
         let latency = Samples::new(
@@ -357,7 +379,7 @@ impl Record {
     }
 
     /// x, y, z against time: truth and estimate, one panel each.
-    fn plot(&self) -> image::RgbImage {
+    fn plot(&self) -> Result<image::RgbImage, plot::PlotError> {
         let t0 = self.truth.values().next().map(|t| t.capture_time_ns).unwrap_or(0);
         let time = |ns: u64| ns.saturating_sub(t0) as f64 * 1e-9;
         let axis = |i: usize| {
@@ -381,7 +403,7 @@ impl Record {
             .map(|((truth, estimate), title)| Panel {
                 title,
                 x_label: "time [s]",
-                y_label: "mm",
+                y_label: "position [mm]",
                 series: vec![
                     Series {
                         label: "truth",

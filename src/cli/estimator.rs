@@ -33,18 +33,11 @@ pub struct EstimatorArgs {
     pub seconds: f64,
 }
 
+/// Tracks until `--seconds` pass or a stop is requested, one pose per processed frame.
 pub fn run(args: &EstimatorArgs) -> Result<()> {
     let config = Config::load(args.config.as_deref())?;
     let model = PhotoModel::load(&args.model)?;
-    if config.realtime != RealtimeSettings::default() {
-        let (thread, locked) = realtime::apply_to_process(&config.realtime);
-        tracing::info!(
-            "estimator: realtime: main thread on CPU {}, SCHED_FIFO priority {}, memory {}",
-            thread.pinned.map_or("any".into(), |c| c.to_string()),
-            thread.fifo_priority.map_or("none".into(), |p| p.to_string()),
-            if locked { "locked" } else { "pageable" }
-        );
-    }
+    apply_realtime(&config.realtime);
     let ipc = Ipc::new("photopose-estimator")?;
     let frames = ipc.frame_subscriber()?;
     let poses = ipc.pose_publisher(POSES_SERVICE)?;
@@ -114,6 +107,21 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
         skipped.summary()
     );
     Ok(())
+}
+
+/// Applies the `[realtime]` settings (when not the defaults) to this process and logs
+/// what took effect.
+fn apply_realtime(settings: &RealtimeSettings) {
+    if *settings == RealtimeSettings::default() {
+        return;
+    }
+    let (thread, locked) = realtime::apply_to_process(settings);
+    tracing::info!(
+        "estimator: realtime: main thread on CPU {}, SCHED_FIFO priority {}, memory {}",
+        thread.pinned.map_or("any".into(), |c| c.to_string()),
+        thread.fifo_priority.map_or("none".into(), |p| p.to_string()),
+        if locked { "locked" } else { "pageable" }
+    );
 }
 
 /// The wire status of a tracking state.

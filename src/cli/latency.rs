@@ -7,7 +7,8 @@
 //! socket and compares the two.
 
 use std::collections::BTreeMap;
-use std::io::{Read, Write};
+use std::fs::File;
+use std::io::{BufWriter, Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -28,7 +29,8 @@ pub struct LatencyArgs {
     /// send at 60 fps).
     #[arg(long, default_value_t = 10.0)]
     pub seconds: f64,
-    /// Also write one line per pose (CSV).
+    /// Also write one line per pose (CSV: frame_id, capture_time_ns, publish_time_ns,
+    /// received_ns, estimation_ms, end_to_end_ms, transport_us).
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
     /// Also write a latency histogram and time series (PNG).
@@ -42,6 +44,8 @@ pub struct LatencyArgs {
     pub compare_transport: bool,
 }
 
+/// Listens for `--seconds` and reports (or compares the transports), writing the CSV
+/// and the plot when asked.
 pub fn run(args: &LatencyArgs) -> Result<()> {
     if !(args.seconds.is_finite() && args.seconds > 0.0) {
         return Err(anyhow!("--seconds {} must be a positive number", args.seconds));
@@ -57,10 +61,13 @@ pub fn run(args: &LatencyArgs) -> Result<()> {
         println!("{}", report.text());
     }
     if let Some(path) = &args.csv {
-        std::fs::write(path, observed.csv()).with_context(|| format!("cannot write {}", path.display()))?;
+        let file = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+        observed
+            .write_csv(BufWriter::new(file))
+            .with_context(|| format!("cannot write {}", path.display()))?;
     }
     if let Some(path) = &args.plot {
-        plot::save(&observed.plot(), path)?;
+        plot::save(&observed.plot()?, path)?;
     }
     Ok(())
 }
@@ -70,6 +77,37 @@ pub fn run(args: &LatencyArgs) -> Result<()> {
 struct Seen {
     pose: PoseMsg,
     received_ns: u64,
+}
+
+/// Column names of `--csv`, in the order of [`PoseRow`]'s fields.
+const CSV_HEADER: [&str; 7] = [
+    "frame_id",
+    "capture_time_ns",
+    "publish_time_ns",
+    "received_ns",
+    "estimation_ms",
+    "end_to_end_ms",
+    "transport_us",
+];
+
+/// One line of `--csv`: a pose's times, its latencies (ms, to the µs) and its frame's
+/// transport time (µs, to 0.1 µs; empty when the frame was not seen).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[cfg_attr(test, derive(serde::Deserialize))]
+struct PoseRow {
+    frame_id: u64,
+    capture_time_ns: u64,
+    publish_time_ns: u64,
+    received_ns: u64,
+    estimation_ms: f64,
+    end_to_end_ms: f64,
+    transport_us: Option<f64>,
+}
+
+/// `v` rounded to `n` decimals, so the CSV carries no false precision.
+fn decimals(v: f64, n: i32) -> f64 {
+    let scale = 10f64.powi(n);
+    (v * scale).round() / scale
 }
 
 /// Everything observed: frames (id → publish, receive time) and poses.
@@ -292,31 +330,33 @@ impl Observed {
         }
     }
 
-    fn csv(&self) -> String {
-        let mut out = String::from(
-            "frame_id,capture_time_ns,publish_time_ns,received_ns,estimation_ms,end_to_end_ms,transport_us\n",
-        );
+    /// Writes one CSV row per pose ([`PoseRow`]) after the header line.
+    fn write_csv<W: Write>(&self, out: W) -> csv::Result<()> {
+        let mut csv = csv::WriterBuilder::new().has_headers(false).from_writer(out);
+        csv.write_record(CSV_HEADER)?;
         for p in &self.poses {
-            let transport = self
-                .frames
-                .get(&p.pose.frame_id)
-                .map(|&(sent, got)| format!("{:.1}", got.saturating_sub(sent) as f64 * 1e-3))
-                .unwrap_or_default();
-            out += &format!(
-                "{},{},{},{},{:.3},{:.3},{transport}\n",
-                p.pose.frame_id,
-                p.pose.capture_time_ns,
-                p.pose.publish_time_ns,
-                p.received_ns,
-                Self::ms(p.pose.publish_time_ns.saturating_sub(p.pose.capture_time_ns)),
-                Self::ms(p.received_ns.saturating_sub(p.pose.capture_time_ns))
-            );
+            csv.serialize(PoseRow {
+                frame_id: p.pose.frame_id,
+                capture_time_ns: p.pose.capture_time_ns,
+                publish_time_ns: p.pose.publish_time_ns,
+                received_ns: p.received_ns,
+                estimation_ms: decimals(
+                    Self::ms(p.pose.publish_time_ns.saturating_sub(p.pose.capture_time_ns)),
+                    3,
+                ),
+                end_to_end_ms: decimals(Self::ms(p.received_ns.saturating_sub(p.pose.capture_time_ns)), 3),
+                transport_us: self
+                    .frames
+                    .get(&p.pose.frame_id)
+                    .map(|&(sent, got)| decimals(got.saturating_sub(sent) as f64 * 1e-3, 1)),
+            })?;
         }
-        out
+        csv.flush()?;
+        Ok(())
     }
 
     /// A histogram of the end-to-end latency above its time series (and estimation's).
-    fn plot(&self) -> image::RgbImage {
+    fn plot(&self) -> Result<image::RgbImage, plot::PlotError> {
         let t0 = self.poses.first().map(|p| p.pose.capture_time_ns).unwrap_or(0);
         let series = |f: &dyn Fn(&Seen) -> u64| -> Vec<(f64, f64)> {
             self.tracking()
@@ -326,11 +366,17 @@ impl Observed {
         let end_to_end = series(&|p| p.received_ns.saturating_sub(p.pose.capture_time_ns));
         let estimation = series(&|p| p.pose.publish_time_ns.saturating_sub(p.pose.capture_time_ns));
         let values: Vec<f64> = end_to_end.iter().map(|p| p.1).collect();
-        let histogram = plot::histogram("end to end: capture → pose received", "ms", &values, 40, PALETTE[0]);
+        let histogram = plot::histogram(
+            "end to end: capture → pose received",
+            "latency [ms]",
+            &values,
+            40,
+            PALETTE[0],
+        );
         let time = Panel {
             title: "latency per pose",
             x_label: "time [s]",
-            y_label: "ms",
+            y_label: "latency [ms]",
             series: vec![
                 Series {
                     label: "end to end",
@@ -407,11 +453,12 @@ fn iceoryx2_transport(n: usize) -> Result<Vec<f64>> {
                 .create()
                 .map_err(|e| anyhow!("cannot publish on {SERVICE}: {e:?}"))?;
             for i in 0..n {
+                // The frame is written in place, as a camera source does, into a
+                // sample that is not zeroed first.
                 let mut sample = publisher
-                    .loan_slice(HD_FRAME)
-                    .map_err(|e| anyhow!("cannot loan a frame: {e:?}"))?;
-                // The frame is written in place, as a camera source does.
-                sample.payload_mut().fill(i as u8);
+                    .loan_slice_uninit(HD_FRAME)
+                    .map_err(|e| anyhow!("cannot loan a frame: {e:?}"))?
+                    .write_from_fn(|_| i as u8);
                 sample.user_header_mut().frame_id = i as u64;
                 sample.user_header_mut().publish_time_ns = monotonic_ns();
                 sample.send().map_err(|e| anyhow!("cannot send: {e:?}"))?;
@@ -477,4 +524,49 @@ fn spin_read(rx: &mut UnixStream, buf: &mut [u8]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn seen(frame_id: u64, capture_ns: u64, publish_ns: u64, received_ns: u64) -> Seen {
+        Seen {
+            pose: PoseMsg {
+                frame_id,
+                capture_time_ns: capture_ns,
+                publish_time_ns: publish_ns,
+                ..Default::default()
+            },
+            received_ns,
+        }
+    }
+
+    #[test]
+    fn csv_has_one_row_per_pose_under_the_header() {
+        let mut observed = Observed::default();
+        observed.frames.insert(7, (1_000_000, 1_012_345));
+        observed.poses = vec![
+            seen(7, 1_000_000, 3_500_400, 4_000_000),
+            seen(8, 2_000_000, 4_000_000, 5_123_456),
+        ];
+        let mut out = Vec::new();
+        observed.write_csv(&mut out).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines,
+            [
+                "frame_id,capture_time_ns,publish_time_ns,received_ns,estimation_ms,end_to_end_ms,transport_us",
+                "7,1000000,3500400,4000000,2.5,3.0,12.3",
+                "8,2000000,4000000,5123456,2.0,3.123,",
+            ]
+        );
+        let rows: Vec<PoseRow> = csv::Reader::from_reader(text.as_bytes())
+            .deserialize()
+            .collect::<Result<_, _>>()
+            .unwrap();
+        assert_eq!((rows[0].transport_us, rows[1].transport_us), (Some(12.3), None));
+        assert_eq!(rows[1].end_to_end_ms, 3.123);
+    }
 }

@@ -7,10 +7,10 @@ use std::time::{Duration, Instant};
 use super::device::{CameraInfo, Device, DeviceError, Opener, BUFFER_ERROR, TIMESTAMP_MASK, TIMESTAMP_MONOTONIC};
 use super::discovery::product_name;
 use super::Mode;
-use crate::capture::{FrameInfo, FrameSource, Geometry, SourceError};
+use crate::capture::{FrameBuf, FrameInfo, FrameSource, Geometry, SourceError, Written};
 use crate::transport::messages::monotonic_ns;
 
-/// How long one [`FrameSource::fill`] waits for a buffer (bounds how late a stop request
+/// How long one [`FrameSource::write_frame`] waits for a buffer (bounds how late a stop request
 /// is noticed).
 const WAIT: Duration = Duration::from_millis(100);
 
@@ -163,7 +163,7 @@ impl<O: Opener> FrameSource for ZedSource<O> {
         })
     }
 
-    fn fill(&mut self, buf: &mut [u8]) -> Result<Option<FrameInfo>, SourceError> {
+    fn write_frame<'a>(&mut self, buf: FrameBuf<'a>) -> Result<Option<(FrameInfo, Written<'a>)>, SourceError> {
         let Some(device) = self.device.as_mut() else {
             if Instant::now() >= self.retry_at {
                 self.reopen();
@@ -202,7 +202,8 @@ impl<O: Opener> FrameSource for ZedSource<O> {
             }
             return Ok(None);
         }
-        buf.copy_from_slice(&filled.bytes[..buf.len()]);
+        let len = buf.len();
+        let frame = buf.copy_from(&filled.bytes[..len])?;
         let monotonic = filled.flags & TIMESTAMP_MASK == TIMESTAMP_MONOTONIC && filled.timestamp_ns > 0;
         let capture_time_ns = if monotonic {
             filled.timestamp_ns
@@ -217,10 +218,11 @@ impl<O: Opener> FrameSource for ZedSource<O> {
             monotonic_ns()
         };
         self.stats.frames += 1;
-        Ok(Some(FrameInfo {
+        let info = FrameInfo {
             capture_time_ns,
             truth: None,
-        }))
+        };
+        Ok(Some((info, frame)))
     }
 
     fn summary(&self) -> Option<String> {

@@ -2,6 +2,14 @@
 //! formats and frame intervals; the memory-mapped buffer queue is driven here with raw
 //! ioctls, so a timeout or an unplugged camera never re-queues a buffer twice or panics
 //! when the stream is torn down).
+//!
+//! Why not the `v4l` crate's `MmapStream` (v4l 0.14): its `next()` first re-queues the
+//! buffer it handed out last, then waits for the next one; when that wait times out or
+//! fails, the following `next()` queues the same buffer a second time, which the driver
+//! refuses, and the stream is stuck. Dropping it panics on any error but `ENODEV` while
+//! stopping the stream or releasing the buffers. Here a buffer is queued again only
+//! after it has been dequeued and read, each wait is one `poll` with the caller's
+//! timeout, and tear-down errors are ignored.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;

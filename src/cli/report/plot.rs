@@ -1,15 +1,23 @@
 //! `plot`: PNG charts without system libraries: stacked line panels and histograms.
 //!
-//! Charts are drawn into an [`image::RgbImage`] with the 8×8 bitmap font of [`font8x8`], so
-//! no fontconfig or freetype is needed. [`panels`] stacks [`Panel`]s vertically, each with its
-//! own axes; a panel shows line [`Series`] and/or histogram [`Bar`]s (see [`histogram`]);
-//! [`save`] writes a PNG. Non-finite points are skipped (a line breaks there) and empty or
-//! constant data get a padded range, so any input gives an image of the requested size.
+//! Charts are drawn with [`plotters`] on its pure-Rust bitmap backend, into an
+//! [`image::RgbImage`]. Text is rasterised by `ab_glyph` in DejaVu Sans, embedded in the
+//! binary from the `dejavu` crate, so neither building nor running needs fontconfig or
+//! freetype. [`panels`] stacks [`Panel`]s vertically, each with its own axes, title,
+//! axis labels and legend; a panel shows line [`Series`] and/or histogram [`Bar`]s (see
+//! [`histogram`]); [`save`] writes a PNG. Non-finite points are skipped (a line breaks
+//! there), empty or constant data get a padded range, and a panel too small to hold a
+//! chart stays blank, so any input gives an image of the requested size.
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
-use font8x8::legacy::{BASIC_LEGACY, LATIN_LEGACY};
-use image::{Rgb, RgbImage};
+use image::RgbImage;
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use plotters::style::{register_font, FontStyle};
 
 /// Distinct line colours: blue, orange, green, red, purple (e.g. truth, estimate, ...).
 pub const PALETTE: [[u8; 3]; 5] = [
@@ -20,24 +28,37 @@ pub const PALETTE: [[u8; 3]; 5] = [
     [148, 103, 189],
 ];
 
-const TEXT: [u8; 3] = [40, 40, 40];
-const AXIS: [u8; 3] = [90, 90, 90];
-const GRID: [u8; 3] = [228, 228, 228];
-const LINE_WIDTH: f64 = 2.2;
+/// The font family every text is drawn in (registered by [`register_fonts`]).
+const FONT: &str = "sans-serif";
+const TEXT: RGBColor = RGBColor(40, 40, 40);
+const AXIS: RGBColor = RGBColor(90, 90, 90);
+const GRID: RGBColor = RGBColor(228, 228, 228);
+const LINE_WIDTH: u32 = 2;
+/// At most this many labelled ticks on the x axis, and on the y axis.
+const X_TICKS: usize = 12;
+const Y_TICKS: usize = 8;
+/// Smallest panel, pixels, that fits title, tick labels and axis labels around a plot.
+const MIN_PANEL: (u32, u32) = (200, 140);
 
 /// One line: `(x, y)` points in drawing order, with its legend label (empty: not listed).
 #[derive(Clone, Copy, Debug)]
 pub struct Series<'a> {
+    /// Legend entry; empty leaves the line out of the legend.
     pub label: &'a str,
+    /// Data points; a non-finite coordinate breaks the line.
     pub points: &'a [(f64, f64)],
+    /// Line colour, RGB.
     pub color: [u8; 3],
 }
 
 /// One histogram bar spanning `x0..x1` on the x axis, `count` high.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bar {
+    /// Left edge, data units.
     pub x0: f64,
+    /// Right edge, data units.
     pub x1: f64,
+    /// Height: how many values fell into the bin.
     pub count: f64,
 }
 
@@ -45,32 +66,58 @@ pub struct Bar {
 /// Build line panels with `..Default::default()` for the fields not needed.
 #[derive(Clone, Debug, Default)]
 pub struct Panel<'a> {
+    /// Caption above the plot area.
     pub title: &'a str,
+    /// Label under the x axis (quantity and unit).
     pub x_label: &'a str,
+    /// Label along the y axis (quantity and unit).
     pub y_label: &'a str,
+    /// Lines, drawn in order over the bars.
     pub series: Vec<Series<'a>>,
+    /// Histogram bars; the legend shows their total count.
     pub bars: Vec<Bar>,
+    /// Fill colour of the bars, RGB.
     pub bar_color: [u8; 3],
 }
 
-/// Why a chart could not be written.
+/// Why a chart could not be drawn or written.
 #[derive(Debug, thiserror::Error)]
 pub enum PlotError {
     /// Encoding or writing the PNG failed (e.g. the directory does not exist).
     #[error("cannot write plot {}: {source}", .path.display())]
     Write { path: PathBuf, source: image::ImageError },
+    /// The embedded font could not be loaded.
+    #[error("cannot load the chart font")]
+    Font,
+    /// Drawing a chart failed.
+    #[error("cannot draw the chart {title:?}: {message}")]
+    Draw { title: String, message: String },
 }
 
 /// Draws `panels` stacked top to bottom, each `height / panels.len()` high, on white.
-pub fn panels(panels: &[Panel], width: u32, height: u32) -> RgbImage {
-    let mut img = RgbImage::from_pixel(width, height, Rgb([255; 3]));
-    let n = panels.len() as i64;
-    for (i, panel) in panels.iter().enumerate() {
-        let (i, h) = (i as i64, i64::from(height));
-        let region = rect(0, i * h / n, i64::from(width) - 1, (i + 1) * h / n - 1);
-        draw_panel(&mut img, panel, &layout(panel, region));
+pub fn panels(panels: &[Panel], width: u32, height: u32) -> Result<RgbImage, PlotError> {
+    let mut buf = vec![255u8; width as usize * height as usize * 3];
+    if !panels.is_empty() && width > 0 && height > 0 {
+        register_fonts()?;
+        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+        // One legend width for all, so the stacked plot areas line up.
+        let legend_w = panels.iter().filter_map(|p| legend_width(&legend_entries(p))).max();
+        for (area, panel) in root.split_evenly((panels.len(), 1)).iter().zip(panels) {
+            draw_panel(area, panel, legend_w).map_err(|e| PlotError::Draw {
+                title: panel.title.to_string(),
+                message: e.to_string(),
+            })?;
+        }
+        root.present().map_err(|e| PlotError::Draw {
+            title: String::new(),
+            message: e.to_string(),
+        })?;
     }
-    img
+    // Cannot fail: the buffer holds exactly width × height RGB pixels.
+    RgbImage::from_raw(width, height, buf).ok_or_else(|| PlotError::Draw {
+        title: String::new(),
+        message: "image buffer of the wrong size".into(),
+    })
 }
 
 /// A histogram panel of the finite `values` in `bins` equal bins (at least one), count on y.
@@ -113,39 +160,20 @@ pub fn save(img: &RgbImage, path: &Path) -> Result<(), PlotError> {
         })
 }
 
-/// Pixel rectangle, bounds inclusive.
-#[derive(Clone, Copy, Debug)]
-struct Rect {
-    x0: i64,
-    y0: i64,
-    x1: i64,
-    y1: i64,
-}
-
-fn rect(x0: i64, y0: i64, x1: i64, y1: i64) -> Rect {
-    Rect { x0, y0, x1, y1 }
-}
-
-/// Where a panel (`region`) puts its plot area, and the data ranges and ticks it shows.
-struct Axes {
-    region: Rect,
-    plot: Rect,
-    x: (f64, f64),
-    y: (f64, f64),
-    x_ticks: Vec<f64>,
-    y_ticks: Vec<f64>,
-    has_data: bool,
-}
-
-impl Axes {
-    /// Data x → pixel column (fractional).
-    fn px(&self, x: f64) -> f64 {
-        self.plot.x0 as f64 + (x - self.x.0) / (self.x.1 - self.x.0) * (self.plot.x1 - self.plot.x0) as f64
+/// Registers the embedded DejaVu Sans as [`FONT`] with plotters, once per process.
+fn register_fonts() -> Result<(), PlotError> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = REGISTERED.get_or_init(|| register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok());
+    if *ok {
+        Ok(())
+    } else {
+        Err(PlotError::Font)
     }
-    /// Data y → pixel row (fractional; rows grow downwards).
-    fn py(&self, y: f64) -> f64 {
-        self.plot.y1 as f64 - (y - self.y.0) / (self.y.1 - self.y.0) * (self.plot.y1 - self.plot.y0) as f64
-    }
+}
+
+/// A [`PALETTE`]-style colour as plotters' colour.
+fn rgb([r, g, b]: [u8; 3]) -> RGBColor {
+    RGBColor(r, g, b)
 }
 
 /// Smallest and largest finite value, if any.
@@ -167,50 +195,19 @@ fn pad((lo, hi): (f64, f64), frac: f64) -> (f64, f64) {
     }
 }
 
-/// About `target` "nice" values (1, 2 or 5 × 10ⁿ apart) inside `lo..=hi`.
-fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
-    let raw = (hi - lo) / target.max(1) as f64;
-    if !(raw.is_finite() && raw > 0.0) {
-        return Vec::new();
-    }
-    let mag = 10f64.powf(raw.log10().floor());
-    let step = [1.0, 2.0, 5.0, 10.0]
-        .iter()
-        .map(|m| m * mag)
-        .find(|&s| s >= raw * (1.0 - 1e-9))
-        .unwrap_or(10.0 * mag);
-    let eps = step * 1e-9;
-    let (k0, k1) = (((lo - eps) / step).ceil(), ((hi + eps) / step).floor());
-    if !(k0.is_finite() && k1.is_finite() && (0.0..=100.0).contains(&(k1 - k0))) {
-        return Vec::new();
-    }
-    (0..=(k1 - k0) as i64).map(|i| (k0 + i as f64) * step + 0.0).collect()
+/// What a panel's axes show.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Extent {
+    /// The data ranges: x padded 1 %, y padded 6 % (bars start at 0).
+    Data { x: (f64, f64), y: (f64, f64) },
+    /// No finite point or bar.
+    Empty,
+    /// The data span more than an `f64` can hold.
+    TooWide,
 }
 
-/// Tick labels with as many decimals as the step needs; scientific for huge or tiny values.
-fn tick_labels(ticks: &[f64]) -> Vec<String> {
-    let step = match ticks {
-        [a, b, ..] => b - a,
-        [a] => a.abs().max(1e-300),
-        [] => 1.0,
-    };
-    let big = ticks.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let step_exp = step.log10().floor();
-    ticks
-        .iter()
-        .map(|&v| match v {
-            _ if v == 0.0 => "0".to_string(),
-            _ if big >= 1e6 || step < 1e-4 => {
-                let digits = (big.log10().floor() - step_exp).clamp(0.0, 15.0) as usize;
-                format!("{v:.digits$e}")
-            }
-            _ => format!("{v:.*}", (-step_exp).clamp(0.0, 15.0) as usize),
-        })
-        .collect()
-}
-
-/// Data ranges of a panel: x padded 1 %, y padded 6 % (bars start at 0), `None` without data.
-fn ranges(p: &Panel) -> Option<((f64, f64), (f64, f64))> {
+/// The axes' ranges for the finite points and bars of `p`.
+fn extent(p: &Panel) -> Extent {
     let pts = || {
         p.series
             .iter()
@@ -222,246 +219,236 @@ fn ranges(p: &Panel) -> Option<((f64, f64), (f64, f64))> {
             .iter()
             .filter(|b| b.x0.is_finite() && b.x1.is_finite() && b.count.is_finite())
     };
-    let x = span(pts().map(|pt| pt.0).chain(bars().flat_map(|b| [b.x0, b.x1])))?;
-    let y = span(pts().map(|pt| pt.1).chain(bars().flat_map(|b| [0.0, b.count])))?;
+    let x = span(pts().map(|pt| pt.0).chain(bars().flat_map(|b| [b.x0, b.x1])));
+    let y = span(pts().map(|pt| pt.1).chain(bars().flat_map(|b| [0.0, b.count])));
+    let (Some(x), Some(y)) = (x, y) else {
+        return Extent::Empty;
+    };
     let (mut y0, y1) = pad(y, 0.06);
     if bars().next().is_some() && y.0 >= 0.0 {
         y0 = 0.0;
     }
-    Some((pad(x, 0.01), (y0, y1)))
-}
-
-/// Places the plot area inside `region`, leaving room for title, ticks and labels.
-fn layout(p: &Panel, region: Rect) -> Axes {
-    let ((x, y), has_data) = ranges(p).map_or((((0.0, 1.0), (0.0, 1.0)), false), |r| (r, true));
-    let top = region.y0 + if p.title.is_empty() { 10 } else { 30 };
-    let bottom = (region.y1 - 36).max(top + 1);
-    let y_ticks = nice_ticks(y.0, y.1, ((bottom - top) / 36).clamp(2, 8) as usize);
-    let label_w = tick_labels(&y_ticks)
-        .iter()
-        .map(|s| text_width(s, 1))
-        .max()
-        .unwrap_or(8);
-    let left = region.x0 + 26 + label_w;
-    let right = (region.x1 - 20).max(left + 1);
-    let x_ticks = nice_ticks(x.0, x.1, ((right - left) / 90).clamp(2, 12) as usize);
-    Axes {
-        region,
-        plot: rect(left, top, right, bottom),
-        x,
-        y,
-        x_ticks,
-        y_ticks,
-        has_data,
+    let (x, y) = (pad(x, 0.01), (y0, y1));
+    if [x.1 - x.0, y.1 - y.0].iter().all(|w| w.is_finite()) {
+        Extent::Data { x, y }
+    } else {
+        Extent::TooWide
     }
 }
 
-fn draw_panel(img: &mut RgbImage, p: &Panel, ax: &Axes) {
-    let r = ax.plot;
-    for &t in &ax.x_ticks {
-        let x = ax.px(t).round() as i64;
-        fill(img, rect(x, r.y0, x, r.y1), GRID);
-    }
-    for &t in &ax.y_ticks {
-        let y = ax.py(t).round() as i64;
-        fill(img, rect(r.x0, y, r.x1, y), GRID);
-    }
-    for b in &p.bars {
-        let (x0, x1) = (ax.px(b.x0).round() as i64 + 1, ax.px(b.x1).round() as i64 - 1);
-        let bar = rect(x0, ax.py(b.count).round() as i64, x1.max(x0), ax.py(0.0).round() as i64);
-        fill(img, clip(bar, r), p.bar_color);
-    }
-    for s in &p.series {
-        draw_series(img, s, ax);
-    }
-    for (x0, y0, x1, y1) in [
-        (r.x0, r.y0, r.x1, r.y0),
-        (r.x0, r.y1, r.x1, r.y1),
-        (r.x0, r.y0, r.x0, r.y1),
-    ] {
-        fill(img, rect(x0, y0, x1, y1), AXIS);
-    }
-    fill(img, rect(r.x1, r.y0, r.x1, r.y1), AXIS);
-    let mut free_from = i64::MIN;
-    for (t, label) in ax.x_ticks.iter().zip(tick_labels(&ax.x_ticks)) {
-        let x = ax.px(*t).round() as i64;
-        fill(img, rect(x, r.y1, x, r.y1 + 4), AXIS);
-        let lx = (x - text_width(&label, 1) / 2).min(i64::from(img.width()) - text_width(&label, 1) - 2);
-        if lx >= free_from {
-            text(img, lx, r.y1 + 8, &label, 1, TEXT);
-            free_from = lx + text_width(&label, 1) + 8;
+/// Tick labels with as many decimals as the tick step needs; scientific notation for
+/// huge values or tiny steps.
+struct TickFormat {
+    step: f64,
+    largest: f64,
+}
+
+impl TickFormat {
+    /// The format of the ticks plotters puts on `range` (at most `max` of them).
+    fn new(range: (f64, f64), max: usize) -> Self {
+        let ticks = RangedCoordf64::from(range.0..range.1).key_points(max);
+        let step = match ticks[..] {
+            [a, b, ..] => b - a,
+            [a] => a.abs(),
+            [] => 1.0,
+        };
+        let largest = ticks.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        Self {
+            step: if step > 0.0 { step } else { 1.0 },
+            largest,
         }
     }
-    for (t, label) in ax.y_ticks.iter().zip(tick_labels(&ax.y_ticks)) {
-        let y = ax.py(*t).round() as i64;
-        fill(img, rect(r.x0 - 4, y, r.x0, y), AXIS);
-        text(img, r.x0 - 7 - text_width(&label, 1), y - 4, &label, 1, TEXT);
+
+    /// The label of tick value `v`.
+    fn label(&self, v: f64) -> String {
+        let step_exp = self.step.log10().floor();
+        if v == 0.0 {
+            "0".into()
+        } else if self.largest >= 1e6 || self.step < 1e-4 {
+            let digits = (self.largest.log10().floor() - step_exp).clamp(0.0, 15.0) as usize;
+            format!("{v:.digits$e}")
+        } else {
+            format!("{v:.*}", (-step_exp).clamp(0.0, 15.0) as usize)
+        }
     }
-    let mid_x = (r.x0 + r.x1) / 2;
-    text(img, mid_x - text_width(p.x_label, 1) / 2, r.y1 + 22, p.x_label, 1, TEXT);
-    let mid_y = (r.y0 + r.y1) / 2;
-    let label_y = mid_y + text_width(p.y_label, 1) / 2;
-    text_up(img, ax.region.x0 + 6, label_y, p.y_label, TEXT);
-    text(img, mid_x - text_width(p.title, 2) / 2, r.y0 - 24, p.title, 2, TEXT);
-    if !ax.has_data {
-        text(img, mid_x - 56, mid_y - 8, "no data", 2, AXIS);
-    }
-    draw_legend(img, p, r);
 }
 
-/// Legend box in the top-right corner of the plot area: a colour swatch and label per entry.
-fn draw_legend(img: &mut RgbImage, p: &Panel, r: Rect) {
-    let total: f64 = p.bars.iter().map(|b| b.count).filter(|c| c.is_finite()).sum();
-    let n_label = format!("n = {total}");
-    let mut entries: Vec<(&str, [u8; 3])> = p
+/// The finite stretches of `points`: where a non-finite coordinate breaks the line.
+fn runs(points: &[(f64, f64)]) -> impl Iterator<Item = &[(f64, f64)]> {
+    points
+        .split(|(x, y)| !(x.is_finite() && y.is_finite()))
+        .filter(|run| !run.is_empty())
+}
+
+type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+type DrawResult<T, DB> = Result<T, DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+/// Draws one panel into `area`: axes, grid, bars, lines, and the legend in a column
+/// `legend_w` wide right of the plot. Returns the chart's data-to-pixel mapping, `None`
+/// when the panel is too small to hold a chart.
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    p: &Panel,
+    legend_w: Option<u32>,
+) -> DrawResult<Option<Cartesian2d<RangedCoordf64, RangedCoordf64>>, DB> {
+    let (w, h) = area.dim_in_pixel();
+    if w < MIN_PANEL.0 || h < MIN_PANEL.1 {
+        return Ok(None);
+    }
+    let extent = extent(p);
+    let (x, y) = match extent {
+        Extent::Data { x, y } => (x, y),
+        Extent::Empty | Extent::TooWide => ((0.0, 1.0), (0.0, 1.0)),
+    };
+    let mut chart = ChartBuilder::on(area)
+        .caption(p.title, (FONT, 20).into_font().color(&TEXT))
+        .margin(8)
+        // Room for the legend right of the plot area, where it hides no data.
+        .margin_right(legend_w.map_or(20, |w| w + 16))
+        .x_label_area_size(44)
+        .y_label_area_size(64)
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)?;
+    let (x_ticks, y_ticks) = (TickFormat::new(x, X_TICKS), TickFormat::new(y, Y_TICKS));
+    let (x_tick, y_tick) = (|v: &f64| x_ticks.label(*v), |v: &f64| y_ticks.label(*v));
+    chart
+        .configure_mesh()
+        .x_desc(p.x_label)
+        .y_desc(p.y_label)
+        .label_style((FONT, 13).into_font().color(&TEXT))
+        .axis_desc_style((FONT, 15).into_font().color(&TEXT))
+        .axis_style(AXIS)
+        .bold_line_style(GRID)
+        .light_line_style(WHITE)
+        .x_labels(X_TICKS)
+        .y_labels(Y_TICKS)
+        .x_label_formatter(&x_tick)
+        .y_label_formatter(&y_tick)
+        .draw()?;
+    if let Extent::Data { .. } = extent {
+        draw_bars(&mut chart, p)?;
+        for s in &p.series {
+            draw_series(&mut chart, s)?;
+        }
+    } else {
+        let message = if extent == Extent::Empty {
+            "no data"
+        } else {
+            "data out of range"
+        };
+        let style = (FONT, 24).into_font().color(&AXIS);
+        let mid = (x.0 + (x.1 - x.0) * 0.4, (y.0 + y.1) / 2.0);
+        chart.draw_series(std::iter::once(Text::new(message, mid, style)))?;
+    }
+    let (plot_x, plot_y) = chart.plotting_area().get_pixel_range();
+    let base = area.get_base_pixel();
+    draw_legend(
+        area,
+        (plot_x.end - base.0 + 12, plot_y.start - base.1),
+        &legend_entries(p),
+    )?;
+    Ok(Some(chart.as_coord_spec().clone()))
+}
+
+/// A legend line: its label, colour and swatch (a line, or a box for bars).
+struct LegendEntry {
+    label: String,
+    color: RGBColor,
+    bar: bool,
+}
+
+/// The legend's lines: the labelled series, then the bars' total count.
+fn legend_entries(p: &Panel) -> Vec<LegendEntry> {
+    let mut entries: Vec<LegendEntry> = p
         .series
         .iter()
         .filter(|s| !s.label.is_empty())
-        .map(|s| (s.label, s.color))
+        .map(|s| LegendEntry {
+            label: s.label.to_string(),
+            color: rgb(s.color),
+            bar: false,
+        })
         .collect();
     if !p.bars.is_empty() {
-        entries.push((&n_label, p.bar_color));
+        let total: f64 = p.bars.iter().map(|b| b.count).filter(|c| c.is_finite()).sum();
+        entries.push(LegendEntry {
+            label: format!("n = {total}"),
+            color: rgb(p.bar_color),
+            bar: true,
+        });
     }
-    if entries.is_empty() {
-        return;
-    }
-    let w = 40 + entries.iter().map(|e| text_width(e.0, 1)).max().unwrap_or(0);
-    let bottom = r.y0 + 16 + 14 * entries.len() as i64;
-    let b = rect(r.x1 - 10 - w, r.y0 + 10, r.x1 - 10, bottom);
-    fill(img, b, [170; 3]);
-    fill(img, rect(b.x0 + 1, b.y0 + 1, b.x1 - 1, b.y1 - 1), [255; 3]);
-    for (i, (label, color)) in entries.into_iter().enumerate() {
-        let y = b.y0 + 11 + 14 * i as i64;
-        fill(img, rect(b.x0 + 8, y - 1, b.x0 + 27, y + 1), color);
-        text(img, b.x0 + 34, y - 4, label, 1, TEXT);
-    }
+    entries
 }
 
-/// Anti-aliased polyline through the finite points of `s`, broken at non-finite ones;
-/// an isolated point becomes a dot. Coverage is the max over segments, so joins stay even.
-fn draw_series(img: &mut RgbImage, s: &Series, ax: &Axes) {
-    let r = ax.plot;
-    let (w, h) = ((r.x1 - r.x0 + 1).max(0) as usize, (r.y1 - r.y0 + 1).max(0) as usize);
-    let mut cov = vec![0f32; w * h];
-    let mut prev: Option<(f64, f64)> = None;
-    for (i, &(x, y)) in s.points.iter().enumerate() {
-        if !(x.is_finite() && y.is_finite()) {
-            prev = None;
-            continue;
-        }
-        let b = (ax.px(x), ax.py(y));
-        let next_ok = s.points.get(i + 1).is_some_and(|(x, y)| x.is_finite() && y.is_finite());
-        match prev {
-            Some(a) => segment(&mut cov, r, a, b, LINE_WIDTH),
-            None if !next_ok => segment(&mut cov, r, b, b, 3.0 * LINE_WIDTH),
-            None => {}
-        }
-        prev = Some(b);
-    }
-    for (i, &c) in cov.iter().enumerate() {
-        if c > 0.0 {
-            blend(img, r.x0 + (i % w) as i64, r.y0 + (i / w) as i64, s.color, f64::from(c));
-        }
-    }
+/// Width of the legend box, pixels (about 8 px per character of 14 px text).
+fn legend_width(entries: &[LegendEntry]) -> Option<u32> {
+    entries.iter().map(|e| 8 * e.label.chars().count() as u32 + 48).max()
 }
 
-/// Adds the coverage of a `width` wide segment `a`–`b` (pixel coordinates) to `cov` over `r`.
-fn segment(cov: &mut [f32], r: Rect, a: (f64, f64), b: (f64, f64), width: f64) {
-    if ![a.0, a.1, b.0, b.1].iter().all(|v| v.is_finite()) {
-        return;
-    }
-    let rad = width / 2.0 + 1.0;
-    let lim = |v: f64, lo: i64, hi: i64| v.clamp(lo as f64, hi as f64) as i64;
-    let (x0, x1) = (lim(a.0.min(b.0) - rad, r.x0, r.x1), lim(a.0.max(b.0) + rad, r.x0, r.x1));
-    let (y0, y1) = (lim(a.1.min(b.1) - rad, r.y0, r.y1), lim(a.1.max(b.1) + rad, r.y0, r.y1));
-    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-    let len2 = dx * dx + dy * dy;
-    let w = r.x1 - r.x0 + 1;
-    for y in y0..=y1 {
-        for x in x0..=x1 {
-            let (qx, qy) = (x as f64 - a.0, y as f64 - a.1);
-            let t = ((qx * dx + qy * dy) / len2.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
-            let d = (qx - t * dx).hypot(qy - t * dy);
-            let c = (width / 2.0 + 0.5 - d).clamp(0.0, 1.0) as f32;
-            if let Some(v) = cov.get_mut(((y - r.y0) * w + x - r.x0) as usize) {
-                *v = v.max(c);
-            }
-        }
-    }
-}
-
-fn clip(a: Rect, b: Rect) -> Rect {
-    rect(a.x0.max(b.x0), a.y0.max(b.y0), a.x1.min(b.x1), a.y1.min(b.y1))
-}
-
-fn bounds(img: &RgbImage) -> Rect {
-    rect(0, 0, i64::from(img.width()) - 1, i64::from(img.height()) - 1)
-}
-
-fn blend(img: &mut RgbImage, x: i64, y: i64, c: [u8; 3], alpha: f64) {
-    let (Ok(x), Ok(y)) = (u32::try_from(x), u32::try_from(y)) else {
-        return;
+/// Draws the legend box with its top-left corner at `(x, y)` of `area`.
+fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    (x, y): (i32, i32),
+    entries: &[LegendEntry],
+) -> DrawResult<(), DB> {
+    let Some(w) = legend_width(entries) else {
+        return Ok(());
     };
-    if let Some(p) = img.get_pixel_mut_checked(x, y) {
-        for (dst, src) in p.0.iter_mut().zip(c) {
-            *dst = (f64::from(*dst) * (1.0 - alpha) + f64::from(src) * alpha).round() as u8;
+    const ROW: i32 = 20;
+    let h = 8 + ROW * entries.len() as i32;
+    area.draw(&Rectangle::new([(x, y), (x + w as i32, y + h)], WHITE.filled()))?;
+    area.draw(&Rectangle::new(
+        [(x, y), (x + w as i32, y + h)],
+        RGBColor(170, 170, 170),
+    ))?;
+    let font = (FONT, 14)
+        .into_font()
+        .color(&TEXT)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    for (i, e) in entries.iter().enumerate() {
+        let mid = y + 4 + ROW * i as i32 + ROW / 2;
+        if e.bar {
+            area.draw(&Rectangle::new([(x + 8, mid - 5), (x + 28, mid + 5)], e.color.filled()))?;
+        } else {
+            area.draw(&PathElement::new(
+                [(x + 8, mid), (x + 28, mid)],
+                e.color.stroke_width(LINE_WIDTH),
+            ))?;
         }
+        area.draw(&Text::new(e.label.as_str(), (x + 36, mid), font.clone()))?;
     }
+    Ok(())
 }
 
-/// Fills `r` (clipped to the image) with `c`.
-fn fill(img: &mut RgbImage, r: Rect, c: [u8; 3]) {
-    let r = clip(r, bounds(img));
-    for y in r.y0..=r.y1 {
-        for x in r.x0..=r.x1 {
-            img.put_pixel(x as u32, y as u32, Rgb(c));
-        }
+/// The bars of `p`.
+fn draw_bars<DB: DrawingBackend>(chart: &mut Chart<'_, DB>, p: &Panel) -> DrawResult<(), DB> {
+    if p.bars.is_empty() {
+        return Ok(());
     }
+    let color = rgb(p.bar_color);
+    let bars = p
+        .bars
+        .iter()
+        .filter(|b| b.x0.is_finite() && b.x1.is_finite() && b.count.is_finite())
+        .map(|b| Rectangle::new([(b.x0, b.count), (b.x1, 0.0)], color.filled()));
+    chart.draw_series(bars)?;
+    Ok(())
 }
 
-/// The 8×8 glyph of `ch` (ASCII and Latin-1; others show as `?`); bit `i` of row `j` is pixel (i, j).
-fn glyph(ch: char) -> [u8; 8] {
-    match ch as usize {
-        c @ 0x20..=0x7e => BASIC_LEGACY[c],
-        c @ 0xa0..=0xff => LATIN_LEGACY[c - 0xa0],
-        _ => BASIC_LEGACY[usize::from(b'?')],
+/// One line, broken at non-finite points; an isolated point becomes a dot.
+fn draw_series<DB: DrawingBackend>(chart: &mut Chart<'_, DB>, s: &Series) -> DrawResult<(), DB> {
+    let color = rgb(s.color);
+    for run in runs(s.points) {
+        match run {
+            [single] => chart.draw_series(std::iter::once(Circle::new(*single, 3, color.filled())))?,
+            _ => chart.draw_series(LineSeries::new(run.iter().copied(), color.stroke_width(LINE_WIDTH)))?,
+        };
     }
-}
-
-fn text_width(s: &str, scale: i64) -> i64 {
-    s.chars().count() as i64 * 8 * scale
-}
-
-/// Draws `s` with its top-left corner at `(x, y)`, each font pixel `scale` × `scale`.
-fn text(img: &mut RgbImage, x: i64, y: i64, s: &str, scale: i64, c: [u8; 3]) {
-    for (i, ch) in s.chars().enumerate() {
-        for (gy, row) in glyph(ch).iter().enumerate() {
-            for gx in (0..8).filter(|gx| row >> gx & 1 == 1) {
-                let (px, py) = (x + (i as i64 * 8 + gx) * scale, y + gy as i64 * scale);
-                fill(img, rect(px, py, px + scale - 1, py + scale - 1), c);
-            }
-        }
-    }
-}
-
-/// Draws `s` rotated to read upwards, starting at bottom-left `(x, y)`.
-fn text_up(img: &mut RgbImage, x: i64, y: i64, s: &str, c: [u8; 3]) {
-    for (i, ch) in s.chars().enumerate() {
-        for (gy, row) in glyph(ch).iter().enumerate() {
-            for gx in (0..8).filter(|gx| row >> gx & 1 == 1) {
-                blend(img, x + gy as i64, y - i as i64 * 8 - gx, c, 1.0);
-            }
-        }
-    }
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn close(a: &[f64], b: &[f64]) -> bool {
-        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9 * y.abs().max(1.0))
-    }
 
     fn series<'a>(label: &'a str, points: &'a [(f64, f64)], color: [u8; 3]) -> Series<'a> {
         Series { label, points, color }
@@ -477,30 +464,35 @@ mod tests {
         }
     }
 
-    #[test]
-    fn nice_ticks_on_hand_picked_ranges() {
-        assert!(close(&nice_ticks(0.0, 1.0, 5), &[0.0, 0.2, 0.4, 0.6, 0.8, 1.0]));
-        assert!(close(&nice_ticks(3.7, 12.1, 5), &[4.0, 6.0, 8.0, 10.0, 12.0]));
-        assert!(close(&nice_ticks(-7.0, 7.0, 5), &[-5.0, 0.0, 5.0]));
-        assert!(close(&nice_ticks(0.0, 1e9, 5), &[0.0, 2e8, 4e8, 6e8, 8e8, 1e9]));
-        assert!(close(
-            &nice_ticks(1.0e-7, 1.5e-7, 5),
-            &[1.0e-7, 1.1e-7, 1.2e-7, 1.3e-7, 1.4e-7, 1.5e-7]
-        ));
-        assert!(nice_ticks(1.0, 1.0, 5).is_empty());
-        assert!(nice_ticks(f64::NAN, 1.0, 5).is_empty());
-        assert!(nice_ticks(-f64::MAX, f64::MAX, 5).is_empty());
+    /// One panel drawn on `w` × `h`, with its data-to-pixel mapping.
+    fn drawn(panel: &Panel, w: u32, h: u32) -> (RgbImage, Cartesian2d<RangedCoordf64, RangedCoordf64>) {
+        register_fonts().unwrap();
+        let mut buf = vec![255u8; (w * h * 3) as usize];
+        let mapping = {
+            let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+            let mapping = draw_panel(&root, panel, legend_width(&legend_entries(panel)))
+                .unwrap()
+                .expect("room for a chart");
+            root.present().unwrap();
+            mapping
+        };
+        let img = RgbImage::from_raw(w, h, buf).unwrap();
+        assert_eq!(img, panels(std::slice::from_ref(panel), w, h).unwrap());
+        (img, mapping)
     }
 
     #[test]
     fn tick_labels_use_the_decimals_the_step_needs() {
-        assert_eq!(
-            tick_labels(&nice_ticks(0.0, 1.0, 5)),
-            ["0", "0.2", "0.4", "0.6", "0.8", "1.0"]
-        );
-        assert_eq!(tick_labels(&[-10.0, 0.0, 10.0]), ["-10", "0", "10"]);
-        assert_eq!(tick_labels(&[1e9, 2e9, 3e9]), ["1e9", "2e9", "3e9"]);
-        assert_eq!(tick_labels(&[1.0e-7, 1.5e-7]), ["1.0e-7", "1.5e-7"]);
+        let labels = |lo: f64, hi: f64, max: usize| -> Vec<String> {
+            let f = TickFormat::new((lo, hi), max);
+            let ticks = RangedCoordf64::from(lo..hi).key_points(max);
+            ticks.iter().map(|&v| f.label(v)).collect()
+        };
+        assert_eq!(labels(0.0, 1.0, 6), ["0", "0.2", "0.4", "0.6", "0.8", "1.0"]);
+        assert_eq!(labels(-10.0, 10.0, 3), ["-10", "0", "10"]);
+        assert_eq!(labels(1e9, 3e9, 3), ["1e9", "2e9", "3e9"]);
+        assert_eq!(labels(1.0e-7, 1.5e-7, 2), ["1.0e-7", "1.5e-7"]);
+        assert_eq!(labels(575.0, 660.0, 8), ["580", "600", "620", "640", "660"]);
     }
 
     #[test]
@@ -511,22 +503,30 @@ mod tests {
     }
 
     #[test]
+    fn lines_break_at_non_finite_points() {
+        let pts = [
+            (0.0, 1.0),
+            (1.0, f64::NAN),
+            (2.0, 2.0),
+            (3.0, 3.0),
+            (f64::INFINITY, 0.0),
+        ];
+        let got: Vec<&[(f64, f64)]> = runs(&pts).collect();
+        assert_eq!(got, [&pts[0..1], &pts[2..4]]);
+    }
+
+    #[test]
     fn horizontal_line_lands_on_the_mapped_row() {
         let color = [200, 10, 10];
         let pts = [(0.0, 5.0), (10.0, 5.0)];
-        let panel = line_panel(vec![series("", &pts, color)]);
-        let img = panels(std::slice::from_ref(&panel), 400, 300);
-        let ax = layout(&panel, bounds(&img));
-        let row = ax.py(5.0).round() as u32;
+        let (img, map) = drawn(&line_panel(vec![series("", &pts, color)]), 400, 300);
         for x in [1.0, 5.0, 9.0] {
-            let col = ax.px(x).round() as u32;
+            let (col, row) = map.translate(&(x, 5.0));
+            let (col, row) = (col as u32, row as u32);
             assert_eq!(img.get_pixel(col, row).0, color, "x = {x}");
             assert_ne!(img.get_pixel(col, row - 4).0, color, "line too thick at x = {x}");
             assert_ne!(img.get_pixel(col, row + 4).0, color, "line too thick at x = {x}");
         }
-        // The other side of the mapping: data at the plot's edges maps to its corners.
-        assert_eq!(ax.px(ax.x.0), ax.plot.x0 as f64);
-        assert_eq!(ax.py(ax.y.1), ax.plot.y0 as f64);
     }
 
     #[test]
@@ -537,10 +537,11 @@ mod tests {
             series("truth", &pts, PALETTE[0]),
             series("estimate", &[], only_in_legend),
         ]);
-        let img = panels(&[panel], 400, 300);
+        let img = panels(&[panel], 400, 300).unwrap();
         assert!(img.pixels().any(|p| p.0 == only_in_legend));
         let unlabelled = line_panel(vec![series("", &[], only_in_legend)]);
-        assert!(!panels(&[unlabelled], 400, 300).pixels().any(|p| p.0 == only_in_legend));
+        let img = panels(&[unlabelled], 400, 300).unwrap();
+        assert!(!img.pixels().any(|p| p.0 == only_in_legend));
     }
 
     #[test]
@@ -551,23 +552,22 @@ mod tests {
         let counts: Vec<f64> = panel.bars.iter().map(|b| b.count).collect();
         assert_eq!(counts, [4.0, 2.0, 1.0]);
         assert_eq!((panel.bars[0].x0, panel.bars[2].x1), (1.0, 3.0));
-        let img = panels(std::slice::from_ref(&panel), 500, 400);
-        let ax = layout(&panel, bounds(&img));
-        let base = ax.py(0.0).round() as u32;
-        let heights: Vec<f64> = panel
-            .bars
-            .iter()
-            .map(|b| {
-                let col = ax.px((b.x0 + b.x1) / 2.0).round() as u32;
-                (0..base)
-                    .rev()
-                    .take_while(|&y| img.get_pixel(col, y).0 == color)
-                    .count() as f64
-            })
-            .collect();
-        let unit = ax.py(0.0) - ax.py(1.0);
-        for (h, c) in heights.iter().zip(&counts) {
-            assert!((h - c * unit).abs() <= 1.5, "height {h} for count {c} (unit {unit} px)");
+        let (img, map) = drawn(&panel, 500, 400);
+        let base = map.translate(&(1.0, 0.0)).1 as u32;
+        for b in &panel.bars {
+            let col = map.translate(&((b.x0 + b.x1) / 2.0, 0.0)).0 as u32;
+            let h = (0..=base + 1)
+                .rev()
+                .skip_while(|&y| img.get_pixel(col, y).0 != color)
+                .take_while(|&y| img.get_pixel(col, y).0 == color)
+                .count() as i32;
+            let top = map.translate(&(b.x0, b.count)).1;
+            let expected = base as i32 - top + 1;
+            assert!(
+                (h - expected).abs() <= 1,
+                "height {h} px for count {}, expected {expected}",
+                b.count
+            );
         }
     }
 
@@ -590,7 +590,7 @@ mod tests {
             .map(|&pts| line_panel(vec![series("", pts, PALETTE[1])]))
             .collect();
         for drawn in &ps[1..4] {
-            let img = panels(std::slice::from_ref(drawn), 640, 400);
+            let img = panels(std::slice::from_ref(drawn), 640, 400).unwrap();
             assert!(
                 img.pixels().any(|p| p.0 == PALETTE[1]),
                 "finite points of {:?}",
@@ -601,19 +601,19 @@ mod tests {
         ps.push(histogram("h", "v", &[2.0; 5], 0, PALETTE[0]));
         ps.push(histogram("h", "v", &[f64::NAN, 1e308, -1e308], 4, PALETTE[0]));
         for (w, h) in [(640, 2000), (200, 100), (7, 3), (0, 0)] {
-            let img = panels(&ps, w, h);
+            let img = panels(&ps, w, h).unwrap();
             assert_eq!(img.dimensions(), (w, h));
             for p in &ps {
-                assert_eq!(panels(std::slice::from_ref(p), w, h).dimensions(), (w, h));
+                assert_eq!(panels(std::slice::from_ref(p), w, h).unwrap().dimensions(), (w, h));
             }
         }
-        assert_eq!(panels(&[], 50, 40).dimensions(), (50, 40));
+        assert_eq!(panels(&[], 50, 40).unwrap().dimensions(), (50, 40));
         assert_eq!(histogram("h", "v", &[2.0; 5], 0, PALETTE[0]).bars.len(), 1);
     }
 
     #[test]
     fn save_names_the_file_on_error_and_writes_a_png() {
-        let img = panels(&[line_panel(Vec::new())], 64, 48);
+        let img = panels(&[line_panel(Vec::new())], 64, 48).unwrap();
         let missing = std::env::temp_dir()
             .join("photopose-plot-no-such-dir")
             .join("chart.png");
