@@ -146,10 +146,10 @@ impl FrameSource for SyntheticSource {
     fn write_frame<'a>(&mut self, buf: FrameBuf<'a>) -> Result<Option<(FrameInfo, Written<'a>)>, SourceError> {
         let pose = self.trajectory.pose_at(self.frames as f64 / self.fps);
         self.scene.card.hand_from_model = pose;
-        // The renderer writes initialised bytes only (it starts with a copy of the empty
-        // scene), so loaned memory is zeroed first.
-        let mut frame = buf.initialised();
-        self.renderer.render_into(&self.scene, frame.bytes_mut());
+        // The empty scene is copied in whole, then the card is rendered over it: every
+        // byte of the (possibly uninitialised) buffer is written once, none zeroed.
+        let mut frame = buf.copy_from(self.renderer.background())?;
+        self.renderer.render_over(&self.scene, frame.bytes_mut());
         self.frames += 1;
         let info = FrameInfo {
             capture_time_ns: monotonic_ns(),

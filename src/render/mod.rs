@@ -204,6 +204,20 @@ impl Renderer {
             return;
         }
         out.copy_from_slice(&self.background);
+        self.render_over(scene, out);
+    }
+
+    /// The frame of the scene without card and occluder.
+    pub fn background(&self) -> &[u8] {
+        &self.background
+    }
+
+    /// Renders the card and occluder of `scene` into `out`, which must already hold a
+    /// copy of [`Renderer::background`] (a frame of another size is left alone).
+    pub fn render_over(&mut self, scene: &Scene, out: &mut [u8]) {
+        if out.len() != self.background.len() {
+            return;
+        }
         let left_from_model = self.left_from_hand * scene.card.hand_from_model;
         let card = (left_from_model, scene.card.size_mm);
         let occluder = scene.occluder.as_ref().map(|o| (o.left_from_occluder, o.size_mm));
