@@ -178,7 +178,7 @@ fn diagnose() {
             e.rotation,
             levels.join(" | ")
         );
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/diagnose");
+        let dir = crate::common::repo("target/diagnose");
         std::fs::create_dir_all(&dir).unwrap();
         r.images.to_sbs().save(dir.join(format!("{}.png", spec.name))).unwrap();
         let pic = photopose::cli::report::overlay::draw(
