@@ -4,7 +4,7 @@
 //! Throughput is in sample-point evaluations (kernel: N_in + N_out points × 2 images per
 //! individual) or in pixels (colour preparation).
 
-#[path = "../common/mod.rs"]
+#[path = "../tests/common/mod.rs"]
 mod common;
 
 use std::sync::OnceLock;
