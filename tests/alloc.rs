@@ -1,6 +1,8 @@
 //! Steady-state work allocates nothing: a counting global allocator (this test binary's
 //! own) watches a tracking frame of the estimator and a frame of the synthetic camera.
 
+mod common;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -10,9 +12,10 @@ use photopose::config::Config;
 use photopose::estimator::model::PhotoModel;
 use photopose::estimator::tracking::StreamTracker;
 use photopose::render::{Renderer, SceneSpec};
-use photopose::vision::color::rgb_row_to_yuyv;
 use photopose::vision::lookup::SbsBytes;
 use photopose::vision::PixelFormat;
+
+use common::{data, repo, yuyv_from_rgb};
 
 /// Counts every allocation of every thread.
 struct Counting;
@@ -45,10 +48,6 @@ fn allocations() -> usize {
     ALLOCATIONS.load(Ordering::Relaxed)
 }
 
-fn repo(rel: &str) -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
-}
-
 /// Both checks in one test: the counter is global, so nothing else may run meanwhile.
 #[test]
 fn tracking_frames_and_synthetic_frames_allocate_nothing() {
@@ -74,16 +73,7 @@ fn tracking_frames_and_synthetic_frames_allocate_nothing() {
         format: PixelFormat::Rgb8,
     };
     // The same frames as a ZED sends them.
-    let yuyv: Vec<Vec<u8>> = frames
-        .iter()
-        .map(|f| {
-            let mut out = vec![0u8; width * 4 * height];
-            for (src, dst) in f.chunks_exact(width * 6).zip(out.chunks_exact_mut(width * 4)) {
-                rgb_row_to_yuyv(src, dst);
-            }
-            out
-        })
-        .collect();
+    let yuyv: Vec<Vec<u8>> = frames.iter().map(|f| yuyv_from_rgb(f, width)).collect();
     let yuyv_frame = |bytes| SbsBytes {
         bytes,
         width,
@@ -108,7 +98,7 @@ fn tracking_frames_and_synthetic_frames_allocate_nothing() {
     // as YUYV, converted straight from the payload.
     let truth: Isometry3<f64> = moved(frames.len() - 1);
     let track = |frames: Vec<SbsBytes>| {
-        let model = PhotoModel::load(&repo("tests/data/examples/rocket.model")).expect("model");
+        let model = PhotoModel::load(&data("examples/rocket.model")).expect("model");
         let mut tracker = StreamTracker::new(model, config.clone());
         for f in &frames[..4] {
             tracker.prepare(f).expect("frame");

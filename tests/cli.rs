@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-use crate::scenes::data;
+use crate::common::{data, repo, scratch};
 
 pub fn photopose(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_photopose"))
@@ -13,12 +13,6 @@ pub fn photopose(args: &[&str]) -> Output {
         .output()
         .expect("run photopose")
 }
-
-fn repo(rel: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel).display().to_string()
-}
-
-pub use crate::common::scratch;
 
 /// `photopose model` of the coffee cup with a given configuration file.
 fn model_with_config(photo: &str, output: &str, config: &str) -> Output {
@@ -54,7 +48,7 @@ fn render_model_estimate_pipeline_writes_the_json_contract() {
     let out = photopose(&[
         "render",
         "--scene",
-        &repo("config/scenes/coffee.toml"),
+        &repo("config/scenes/coffee.toml").display().to_string(),
         "-o",
         &p("frame.png"),
         "--truth",
@@ -193,7 +187,7 @@ fn bad_input_gives_one_line_naming_the_file() {
         ("invalid-nan.toml", "x_mm"),
         ("invalid-syntax.toml", "line 3"),
     ] {
-        let cfg = data(&format!("config/{name}")).display().to_string();
+        let cfg = data(format!("config/{name}")).display().to_string();
         fails_with(&model_with_config(&coffee, &p("x.model"), &cfg), &[name, needle]);
     }
     let cal = data("calibration/invalid-not-a-number.conf");
@@ -209,8 +203,8 @@ fn bad_input_gives_one_line_naming_the_file() {
 #[test]
 fn bench_json_reports_every_figure() {
     let (frame, model) = (
-        repo("tests/data/examples/rocket-frame.jpg"),
-        repo("tests/data/examples/rocket.model"),
+        data("examples/rocket-frame.jpg").display().to_string(),
+        data("examples/rocket.model").display().to_string(),
     );
     let out = photopose(&[
         "bench",

@@ -7,8 +7,8 @@
 
 use std::path::Path;
 
-use crate::cli::{fails_with, photopose, scratch};
-use crate::scenes::data;
+use crate::cli::{fails_with, photopose};
+use crate::common::{data, scratch};
 
 #[test]
 fn unknown_class_and_bad_min_score_are_one_line_errors() {
@@ -52,8 +52,9 @@ mod with_detector {
     use photopose::estimator::oneshot;
     use photopose::estimator::pose::rotation_error_deg;
 
-    use crate::cli::{fails_with, photopose, scratch};
-    use crate::scenes::{self, data, Spec};
+    use crate::cli::{fails_with, photopose};
+    use crate::common::{data, repo, scratch};
+    use crate::scenes::{self, Spec};
 
     /// The cup in coffee.jpg as a person boxes it.
     const REFERENCE: Rect = Rect {
@@ -296,7 +297,7 @@ mod with_detector {
 
     /// A configuration with the repository's calibration and runtime and another network.
     fn config_with_model(model: &str) -> String {
-        let calibration = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/SN-example.conf");
+        let calibration = repo("config/SN-example.conf");
         let (library, _) = detect::library_path(&Config::load(None).unwrap().detect);
         format!("[camera]\ncalibration = {calibration:?}\n[detect]\nmodel = {model:?}\nonnxruntime = {library:?}\n")
     }

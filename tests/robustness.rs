@@ -15,7 +15,7 @@ use photopose::vision::lookup::SbsBytes;
 use photopose::vision::PixelFormat;
 use proptest::prelude::*;
 
-use crate::scenes::data;
+use crate::common::{data, repo};
 
 /// Fragments that break parsers in interesting ways: separators, non-numbers, signs,
 /// brackets, line ends, huge exponents.
@@ -219,7 +219,7 @@ proptest! {
 }
 
 fn scene_path() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("config/scenes/rocket.toml")
+    repo("config/scenes/rocket.toml")
 }
 
 fn encoded(format: image::ImageFormat) -> Vec<u8> {

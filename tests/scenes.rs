@@ -1,7 +1,7 @@
 //! The rendered test scenes: real photos on cards in front of a cluttered collage
 //! wall, through the example ZED 2i calibration at HD with lens distortion.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use image::RgbImage;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -11,12 +11,10 @@ use photopose::estimator::model::PhotoModel;
 use photopose::render::{self, Background, Card, Scene};
 use photopose::vision::frame::{load_rgb, StereoImages};
 
+use crate::common::data;
+
 /// Photos shipped for tests (public domain / CC0, from scikit-image's sample data).
 pub const PHOTOS: [&str; 4] = ["coffee.jpg", "chelsea.jpg", "astronaut.jpg", "rocket.jpg"];
-
-pub fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(rel)
-}
 
 /// One scene: which photo and box, where the card is in the left-camera frame.
 #[derive(Debug, Clone)]
@@ -256,7 +254,7 @@ pub struct Rendered {
 }
 
 pub fn photo(name: &str) -> RgbImage {
-    load_rgb(&data(&format!("photos/{name}"))).expect("test photo")
+    load_rgb(&data(format!("photos/{name}"))).expect("test photo")
 }
 
 /// Renders a scene at HD and builds the photo-model from the same photo and box.
@@ -297,7 +295,7 @@ pub fn render(spec: &Spec, seed: u64) -> Rendered {
     let images = StereoImages::from_sbs(&sbs, Path::new(spec.name)).expect("even width");
     let model = PhotoModel::build(
         &full,
-        &data(&format!("photos/{}", spec.photo)),
+        &data(format!("photos/{}", spec.photo)),
         spec.bbox,
         &config.model,
         &config.fitness.classes(),

@@ -1,5 +1,5 @@
 //! photopose integration tests: one binary, a module per area; fixtures are found
-//! through `CARGO_MANIFEST_DIR`.
+//! through `CARGO_MANIFEST_DIR` (`common::repo`, `common::data`).
 
 mod accuracy;
 mod cli;

@@ -18,17 +18,16 @@ use photopose::config::Config;
 use photopose::estimator::model::PhotoModel;
 use photopose::estimator::tracking::StreamTracker;
 use photopose::render::{Renderer, SceneSpec};
-use photopose::vision::color::rgb_row_to_yuyv;
 use photopose::vision::lookup::SbsBytes;
 use photopose::vision::PixelFormat;
 
-use crate::cli::{fails_with, photopose, scratch};
-use crate::scenes::data;
+use crate::cli::{fails_with, photopose};
+use crate::common::{data, repo, scratch, yuyv_from_rgb};
 
 /// Frames of the rocket card moving 2–3 mm per frame, rendered in HD and encoded as the
 /// ZED sends them (YUYV), with the card's true poses.
 fn yuyv_frames(config: &Config, n: usize) -> (Vec<Arc<[u8]>>, Vec<Isometry3<f64>>) {
-    let spec = SceneSpec::load(&data("../../config/scenes/rocket.toml")).expect("scene");
+    let spec = SceneSpec::load(&repo("config/scenes/rocket.toml")).expect("scene");
     let mut scene = spec.build(&config.left_from_hand).expect("scene");
     let rig = config.calibration.rig(Resolution::HD).expect("HD");
     let mut renderer = Renderer::new(&rig, &config.left_from_hand, &scene);
@@ -40,11 +39,7 @@ fn yuyv_frames(config: &Config, n: usize) -> (Vec<Arc<[u8]>>, Vec<Isometry3<f64>
         let pose = Translation3::new(2.0 * i as f64, -(i as f64), 0.5 * i as f64) * start;
         scene.card.hand_from_model = pose;
         renderer.render_into(&scene, &mut rgb);
-        let mut yuyv = vec![0u8; rgb.len() / 3 * 2];
-        for (src, dst) in rgb.chunks_exact(6 * w).zip(yuyv.chunks_exact_mut(4 * w)) {
-            rgb_row_to_yuyv(src, dst);
-        }
-        frames.push(Arc::from(yuyv));
+        frames.push(Arc::from(yuyv_from_rgb(&rgb, w)));
         truth.push(pose);
     }
     (frames, truth)

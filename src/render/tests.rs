@@ -328,45 +328,6 @@ fn collage_background_and_degenerate_inputs_do_not_panic() {
     assert_eq!(render(&empty, &left_from_hand(), &scene).dimensions(), (0, 360));
 }
 
-/// `cargo test --release render_hd_timing -- --ignored --nocapture`
-#[test]
-#[ignore]
-fn render_hd_timing() {
-    let cam = Intrinsics {
-        fx: 530.0,
-        fy: 530.0,
-        cx: 640.0,
-        cy: 360.0,
-        k1: -0.05,
-        k2: 0.02,
-        p1: 0.0,
-        p2: 0.0,
-        k3: -0.005,
-    };
-    let rig = StereoRig {
-        width: 1280,
-        height: 720,
-        left: cam,
-        right: cam,
-        right_from_left: pose([-120.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
-    };
-    let lfm = pose([0.0, 0.0, 650.0], [0.2, 0.3, 0.1]);
-    let mut scene = scene_with(lfm, RED, [120.0, 125.0]);
-    scene.card.texture = RgbImage::from_fn(279, 289, |x, y| Rgb([x as u8, y as u8, 90]));
-    scene.background = Background::collage(&[], 7, 1500.0);
-    scene.noise_sigma = 2.0;
-    let t = std::time::Instant::now();
-    let _ = render(&rig, &Isometry3::identity(), &scene);
-    let first = t.elapsed().as_secs_f64() * 1e3;
-    let t = std::time::Instant::now();
-    let n = 5;
-    for _ in 0..n {
-        let _ = render(&rig, &Isometry3::identity(), &scene);
-    }
-    let next = t.elapsed().as_secs_f64() * 1e3 / n as f64;
-    println!("HD frame: first {first:.1} ms (ray tables), then {next:.1} ms");
-}
-
 #[test]
 fn incremental_frames_equal_full_renders() {
     let rig = rig(true);
@@ -388,33 +349,4 @@ fn incremental_frames_equal_full_renders() {
         let differ = out.iter().zip(full.as_raw()).filter(|(a, b)| a != b).count();
         assert_eq!(differ, 0, "step {step}: {differ} bytes differ from a full render");
     }
-}
-
-/// `cargo test --release render_hd_timing -- --ignored --nocapture`
-#[test]
-#[ignore]
-fn incremental_hd_timing() {
-    let rig = {
-        let mut r = rig(true);
-        r.width = 1280;
-        r.height = 720;
-        r.left = lens(true, 640.0);
-        r.right = r.left;
-        r
-    };
-    let lfm = pose([0.0, 0.0, 650.0], [0.2, 0.3, 0.1]);
-    let mut scene = scene_with(lfm, RED, [180.0, 160.0]);
-    scene.background = Background::collage(&[], 7, 1500.0);
-    let mut renderer = Renderer::new(&rig, &Isometry3::identity(), &scene);
-    let mut out = vec![0u8; renderer.frame_len()];
-    let t = std::time::Instant::now();
-    let n = 30;
-    for i in 0..n {
-        scene.card.hand_from_model = left_from_hand().inverse() * pose([i as f64, 0.0, 650.0], [0.2, 0.3, 0.1]);
-        renderer.render_into(&scene, &mut out);
-    }
-    println!(
-        "incremental HD frame: {:.1} ms",
-        t.elapsed().as_secs_f64() * 1e3 / n as f64
-    );
 }

@@ -4,7 +4,9 @@
 //! Throughput is in sample-point evaluations (kernel: N_in + N_out points × 2 images per
 //! individual) or in pixels (colour preparation).
 
-use std::path::Path;
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use std::sync::OnceLock;
 
 use divan::counter::ItemsCount;
@@ -15,15 +17,14 @@ use photopose::estimator::ga::robust::view_sample;
 use photopose::estimator::ga::{Genes, Problem};
 use photopose::estimator::model::PhotoModel;
 use photopose::estimator::oneshot::Prepared;
-use photopose::vision::color::rgb_row_to_yuyv;
 use photopose::vision::frame::{Region, StereoImages};
 use photopose::vision::lookup::{LevelLookup, LookupImage, SbsBytes};
 use photopose::vision::PixelFormat;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 
-const FRAME: &str = "tests/data/examples/rocket-frame.jpg";
-const MODEL: &str = "tests/data/examples/rocket.model";
+const FRAME: &str = "examples/rocket-frame.jpg";
+const MODEL: &str = "examples/rocket.model";
 /// Random individuals per kernel iteration.
 const INDIVIDUALS: usize = 2000;
 
@@ -43,17 +44,15 @@ struct Fixture {
 fn fixture() -> &'static Fixture {
     static FIXTURE: OnceLock<Fixture> = OnceLock::new();
     FIXTURE.get_or_init(|| {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
         let config = Config::load(None).expect("built-in configuration");
-        let model = PhotoModel::load(&root.join(MODEL)).expect("example model");
-        let images = StereoImages::load_sbs(&root.join(FRAME)).expect("example frame");
+        let model = PhotoModel::load(&common::data(MODEL)).expect("example model");
+        let images = StereoImages::load_sbs(&common::data(FRAME)).expect("example frame");
         let prepared = Prepared::new(&model, &images, &config).expect("example calibration");
         let one = Problem::new(&prepared.scorer, &prepared.levels, &prepared.points, prepared.bounds, 1);
         let mut rng = StdRng::seed_from_u64(1);
         let genes = (0..INDIVIDUALS).map(|_| view_sample(&one, &mut rng)).collect();
         let sbs = images.to_sbs().into_raw();
-        let mut yuyv = vec![0; sbs.len() / 3 * 2];
-        rgb_row_to_yuyv(&sbs, &mut yuyv);
+        let yuyv = common::yuyv_from_rgb(&sbs, images.eye_size().0 as usize);
         Fixture {
             config,
             images,

@@ -1,0 +1,71 @@
+//! `photopose latency`: the running pipeline's timings, and the two transports compared.
+
+use std::time::Duration;
+
+use crate::process::{estimator, photopose, serial, spawn, Watcher};
+
+/// `photopose latency --json` (or `--compare-transport`) as parsed JSON.
+fn latency_json(extra: &[&str]) -> serde_json::Value {
+    let out = photopose()
+        .args(["latency", "--json"])
+        .args(extra)
+        .output()
+        .expect("photopose binary");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one JSON object: {text}");
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"))
+}
+
+#[test]
+fn latency_measures_the_running_pipeline() {
+    let _serial = serial();
+    let _estimator = estimator();
+    let _capture = spawn(&["capture"]);
+    let mut w = Watcher::new("photopose-test-latency");
+    assert!(w.until_pose(Duration::from_secs(8)), "no pose");
+    let r = latency_json(&["--seconds", "3"]);
+    println!("latency: {r}");
+    let n = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("no number {k} in {r}"));
+    // 3 s of a 60 fps camera (a busy machine may render fewer), a pose for nearly every frame.
+    assert!((120.0..=200.0).contains(&n("frames")), "{} frames", n("frames"));
+    assert!(n("poses") >= 0.9 * n("frames"), "{} poses", n("poses"));
+    assert!(
+        n("dropped_frames") <= 0.05 * n("frames"),
+        "{} dropped",
+        n("dropped_frames")
+    );
+    for (p50, p99) in [
+        ("transport_p50_us", "transport_p99_us"),
+        ("estimation_p50_ms", "estimation_p99_ms"),
+        ("end_to_end_p50_ms", "end_to_end_p99_ms"),
+    ] {
+        assert!(n(p50) > 0.0 && n(p50) <= n(p99), "{p50} {} {p99} {}", n(p50), n(p99));
+    }
+    assert!(n("end_to_end_max_ms") >= n("end_to_end_p99_ms"));
+    // A pose is received after it is published: end to end includes estimation.
+    assert!(n("end_to_end_p50_ms") >= n("estimation_p50_ms"));
+    // Frames travel by reference: far below a millisecond.
+    assert!(
+        n("transport_p50_us") < 1000.0,
+        "transport p50 {} µs",
+        n("transport_p50_us")
+    );
+}
+
+#[test]
+fn compare_transport_times_both_transports_on_the_same_frames() {
+    let _serial = serial();
+    let r = latency_json(&["--compare-transport", "--seconds", "1"]);
+    println!("compare transport: {r}");
+    assert_eq!(r["frames"], 60);
+    assert_eq!(r["frame_bytes"], 2 * 1280 * 720 * 3);
+    let p50 = |t: &str| r[t]["p50"].as_f64().unwrap_or_else(|| panic!("no {t}.p50 in {r}"));
+    let ratio = r["ratio_p50"].as_f64().unwrap();
+    assert!((ratio - p50("unix_socket_us") / p50("iceoryx2_us")).abs() < 1e-9 * ratio);
+    for t in ["iceoryx2_us", "unix_socket_us"] {
+        assert!(p50(t) > 0.0 && r[t]["max"].as_f64().unwrap() >= p50(t));
+    }
+    // Copying 5.5 MB cannot beat passing a reference.
+    assert!(ratio > 1.0, "ratio {ratio}");
+}
