@@ -107,7 +107,7 @@ impl Chunk {
             // `max` first: it turns NaN into 0.
             let ur = (u.max(0.0).min(u_max) + ROUND) - ROUND;
             let vr = (v.max(0.0).min(v_max) + ROUND) - ROUND;
-            o.write((vr * width + ur + ROUND).to_bits() - ROUND.to_bits());
+            o.write((vr * width + ur + ROUND).to_bits().wrapping_sub(ROUND.to_bits()));
         }
         // SAFETY: the loop above wrote the first `n` indices.
         let idx: &[u32] = unsafe { std::slice::from_raw_parts(self.idx.as_ptr().cast(), n) };
@@ -164,17 +164,25 @@ pub struct OuterTest {
     pub sat_tolerance: u8,
 }
 
+/// How many of `hits` are true. Counts here never exceed the model's point count, so
+/// the sums are wrapping: a checked `+` (overflow checks in tests) would keep these
+/// loops from vectorising.
+#[inline(always)]
+fn count_true(hits: impl Iterator<Item = bool>) -> u32 {
+    hits.fold(0u32, |n, hit| n.wrapping_add(hit as u32))
+}
+
 impl OuterTest {
     /// How many of `texels` see the target (a point off the image always does: a
     /// mismatch). The test's branch is taken once, each loop is branch-free vector code.
     #[inline(always)]
     fn targets(&self, texels: &[u32]) -> u32 {
         if self.raw_hue {
-            texels.iter().map(|&t| self.raw_target(t) as u32).sum()
+            count_true(texels.iter().map(|&t| self.raw_target(t)))
         } else if self.center_code < 180 {
-            texels.iter().map(|&t| self.chromatic_target(t) as u32).sum()
+            count_true(texels.iter().map(|&t| self.chromatic_target(t)))
         } else {
-            texels.iter().map(|&t| self.class_target(t) as u32).sum()
+            count_true(texels.iter().map(|&t| self.class_target(t)))
         }
     }
 
@@ -287,13 +295,15 @@ fn count_chunks<const BOTH: bool>(
             let tr = b.read(right, pr, xs, ys);
             for ((&l, &r), (&code, &sat)) in tl.iter().zip(tr).zip(model) {
                 let ml = chromatic_match(l, code, sat, tol);
-                c.close[0] += ml as u32;
-                c.close[1] += chromatic_match(r, code, sat, tol) as u32;
-                c.confirmed += (ml & ((r & 0xff) < 180) & same_colour(l, r, tol)) as u32;
+                c.close[0] = c.close[0].wrapping_add(ml as u32);
+                c.close[1] = c.close[1].wrapping_add(chromatic_match(r, code, sat, tol) as u32);
+                c.confirmed = c
+                    .confirmed
+                    .wrapping_add((ml & ((r & 0xff) < 180) & same_colour(l, r, tol)) as u32);
             }
         } else {
             for (&l, (&code, &sat)) in tl.iter().zip(model) {
-                c.close[0] += chromatic_match(l, code, sat, tol) as u32;
+                c.close[0] = c.close[0].wrapping_add(chromatic_match(l, code, sat, tol) as u32);
             }
         }
     }
@@ -306,13 +316,13 @@ fn count_chunks<const BOTH: bool>(
             let tr = b.read(right, pr, xs, ys);
             for ((&l, &r), &code) in tl.iter().zip(tr).zip(codes) {
                 let (ml, mr) = ((l & 0xff) == code as u32, (r & 0xff) == code as u32);
-                c.close[0] += ml as u32;
-                c.close[1] += mr as u32;
-                c.confirmed += (ml & mr) as u32;
+                c.close[0] = c.close[0].wrapping_add(ml as u32);
+                c.close[1] = c.close[1].wrapping_add(mr as u32);
+                c.confirmed = c.confirmed.wrapping_add((ml & mr) as u32);
             }
         } else {
             for (&l, &code) in tl.iter().zip(codes) {
-                c.close[0] += ((l & 0xff) == code as u32) as u32;
+                c.close[0] = c.close[0].wrapping_add(((l & 0xff) == code as u32) as u32);
             }
         }
     }
@@ -321,14 +331,18 @@ fn count_chunks<const BOTH: bool>(
     for start in (0..n_outer).step_by(CHUNK) {
         let r = start..(start + CHUNK).min(n_outer);
         let (xs, ys) = (&points.outer_x[r.clone()], &points.outer_y[r]);
-        target[0] += tol.outer.targets(a.read(left, pl, xs, ys));
+        target[0] = target[0].wrapping_add(tol.outer.targets(a.read(left, pl, xs, ys)));
         if BOTH {
-            target[1] += tol.outer.targets(b.read(right, pr, xs, ys));
+            target[1] = target[1].wrapping_add(tol.outer.targets(b.read(right, pr, xs, ys)));
         }
     }
     c.background = [
-        n_outer as u32 - target[0],
-        if BOTH { n_outer as u32 - target[1] } else { 0 },
+        (n_outer as u32).wrapping_sub(target[0]),
+        if BOTH {
+            (n_outer as u32).wrapping_sub(target[1])
+        } else {
+            0
+        },
     ];
     c
 }
