@@ -109,6 +109,18 @@ pub(crate) struct TomlError<'a> {
     pub line_column: Option<(usize, usize)>,
 }
 
+impl TomlError<'_> {
+    /// The message on one line (line breaks become `; `), then ` (line N)`: how
+    /// configuration and recording files report TOML errors.
+    pub(crate) fn one_line_with_line_number(&self) -> String {
+        let location = match self.line_column {
+            Some((line, _)) => format!(" (line {line})"),
+            None => String::new(),
+        };
+        self.message.replace('\n', "; ") + &location
+    }
+}
+
 /// Locates `error`, raised while parsing `text`, in that text.
 pub(crate) fn toml_error<'a>(text: &str, error: &'a toml::de::Error) -> TomlError<'a> {
     let line_column = error.span().map(|span| {
@@ -191,7 +203,7 @@ impl Config {
     pub fn parse(text: &str, path: &Path, dir: Option<&Path>) -> Result<Config, ConfigError> {
         let raw: RawConfig = toml::from_str(text).map_err(|e| ConfigError::Toml {
             path: path.to_path_buf(),
-            message: one_line_with_line_number(toml_error(text, &e)),
+            message: toml_error(text, &e).one_line_with_line_number(),
         })?;
         let calibration_file = raw.camera.calibration_file(dir, Path::new(EXAMPLE_CALIBRATION_NAME));
         let calibration = match &calibration_file {
@@ -236,15 +248,6 @@ fn realtime(settings: RealtimeSettings) -> Result<RealtimeSettings, InvalidSetti
     }
 }
 
-/// A configuration file's TOML error: the message on one line (line breaks become `; `),
-/// then ` (line N)`.
-fn one_line_with_line_number(error: TomlError<'_>) -> String {
-    let location = match error.line_column {
-        Some((line, _)) => format!(" (line {line})"),
-        None => String::new(),
-    };
-    error.message.replace('\n', "; ") + &location
-}
 
 #[cfg(test)]
 mod tests {

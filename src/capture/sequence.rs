@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{Geometry, Truth};
 use crate::camera::geometry::{is_unit_wxyz, w_nonnegative, wxyz_norm, FILE_UNIT_TOLERANCE};
+use crate::config::toml_error;
 use crate::vision::PixelFormat;
 
 /// Format tag of `sequence.toml`.
@@ -317,7 +318,7 @@ impl Sequence {
         })?;
         let info: SequenceInfo = toml::from_str(&text).map_err(|e| SequenceError::Invalid {
             path: info_path.clone(),
-            message: e.message().replace('\n', "; "),
+            message: toml_error(&text, &e).one_line_with_line_number(),
         })?;
         let geometry = info.geometry(&info_path)?;
         let csv_path = dir.join(FRAMES_FILE);
