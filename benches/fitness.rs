@@ -4,6 +4,9 @@
 //! Throughput is in sample-point evaluations (kernel: N_in + N_out points × 2 images per
 //! individual) or in pixels (colour preparation).
 
+// Test code: a failed unwrap is a failed test.
+#![allow(clippy::unwrap_used)]
+
 #[path = "../tests/common/mod.rs"]
 mod common;
 

@@ -4,6 +4,9 @@
 //!
 //! Throughput is in output pixels (both eyes).
 
+// Test code: a failed unwrap is a failed test.
+#![allow(clippy::unwrap_used)]
+
 #[path = "../tests/common/mod.rs"]
 mod common;
 

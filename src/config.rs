@@ -248,7 +248,6 @@ fn realtime(settings: RealtimeSettings) -> Result<RealtimeSettings, InvalidSetti
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

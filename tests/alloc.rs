@@ -1,6 +1,9 @@
 //! Steady-state work allocates nothing: a counting global allocator (this test binary's
 //! own) watches a tracking frame of the estimator and a frame of the synthetic camera.
 
+// Test code: a failed unwrap is a failed test.
+#![allow(clippy::unwrap_used)]
+
 mod common;
 
 use std::alloc::{GlobalAlloc, Layout, System};

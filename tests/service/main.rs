@@ -4,6 +4,9 @@
 //! the Python client `tools/pose_client.py`. They share the service names, so they run
 //! one at a time ([`process::serial`]).
 
+// Test code: a failed unwrap is a failed test.
+#![allow(clippy::unwrap_used)]
+
 #[path = "../common/mod.rs"]
 mod common;
 mod process;
