@@ -1,7 +1,9 @@
 //! From a photo and stereo frames to a pose and size: the photo-[`model`], a candidate
 //! [`pose`], the stereo [`fitness`], the [`ga`] that searches, the [`oneshot`] estimate of
-//! one frame and [`tracking`] across frames, on the fitness [`workers`] with the
-//! [`realtime`] options of the estimator process. Nothing here knows the wire format.
+//! one frame and [`tracking`] across frames (on the GA's [`ga::live`] population, kept
+//! from frame to frame), on the fitness [`workers`] with the [`realtime`] options of the
+//! estimator process. [`settings`] holds each estimator setting and its validation.
+//! Nothing here knows the wire format.
 
 pub mod fitness;
 pub mod ga;

@@ -18,28 +18,74 @@ pub const VERSION: u32 = 1;
 /// A problem building, reading or writing a photo-model.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
+    /// The requested box does not lie inside the photo.
     #[error("{path}: box {x},{y},{w},{h} does not lie inside the {width}x{height} photo")]
     BoxOutside {
+        /// The photo.
         path: PathBuf,
+        /// Left column of the box, photo pixels.
         x: i64,
+        /// Top row of the box, photo pixels.
         y: i64,
+        /// Box width, pixels.
         w: i64,
+        /// Box height, pixels.
         h: i64,
+        /// Photo width, pixels.
         width: u32,
+        /// Photo height, pixels.
         height: u32,
     },
+    /// The box is narrower or lower than 8 pixels.
     #[error("{path}: box {w}x{h} is too small (at least 8x8 pixels)")]
-    BoxTooSmall { path: PathBuf, w: i64, h: i64 },
+    BoxTooSmall {
+        /// The photo.
+        path: PathBuf,
+        /// Box width, pixels.
+        w: i64,
+        /// Box height, pixels.
+        h: i64,
+    },
+    /// The model file could not be read.
     #[error("cannot read {path}: {source}")]
-    Read { path: PathBuf, source: std::io::Error },
+    Read {
+        /// The model file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The model file could not be written.
     #[error("cannot write {path}: {source}")]
-    Write { path: PathBuf, source: std::io::Error },
+    Write {
+        /// The model file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The text is not JSON of a photopose model (or the model would not serialise).
     #[error("{path}: not a photopose model: {message}")]
-    Parse { path: PathBuf, message: String },
+    Parse {
+        /// The model file.
+        path: PathBuf,
+        /// What is wrong, e.g. the JSON parser's message.
+        message: String,
+    },
+    /// The file's format version is not [`VERSION`].
     #[error("{path}: model format version {found} is not supported (this build reads {VERSION})")]
-    Version { path: PathBuf, found: u32 },
+    Version {
+        /// The model file.
+        path: PathBuf,
+        /// The version the file declares (0 when it has none).
+        found: u32,
+    },
+    /// The model parses but its content is unusable.
     #[error("{path}: model has {problem}")]
-    Invalid { path: PathBuf, problem: String },
+    Invalid {
+        /// The model file.
+        path: PathBuf,
+        /// What is wrong, e.g. "no inner points".
+        problem: String,
+    },
 }
 
 /// A box in photo pixels, `(x, y)` its top-left corner.

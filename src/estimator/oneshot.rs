@@ -15,12 +15,15 @@ use crate::vision::lookup::LevelLookup;
 
 /// The per-frame inputs of the search, prepared once.
 pub struct Prepared {
+    /// The fitness of the configured mode for this model.
     pub scorer: Scorer,
     /// The frame's lookup images at every pyramid level, level 0 at full resolution.
     pub levels: Vec<LevelLookup>,
     /// The model's points on each level.
     pub points: Vec<PointSet>,
+    /// The search space, mapping normalised genes to pose and size.
     pub bounds: Bounds,
+    /// The configured method, paper or robust.
     pub mode: Mode,
 }
 
@@ -102,19 +105,30 @@ pub fn search(
 /// The `--json` report: exactly the fields of the estimate contract.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Report {
+    /// Model origin `(x, y, z)` in the hand frame, mm.
     pub position_mm: [f64; 3],
+    /// Model orientation in the hand frame, unit quaternion `[w, x, y, z]` with `w ≥ 0`.
     pub orientation_wxyz: [f64; 4],
+    /// Object size `[L, B]` along model x and y, mm.
     pub size_mm: [f64; 2],
+    /// PM ratio `α` along model x, photo pixels per mm.
     pub alpha: f64,
+    /// Ratio factor `k = β / α`.
     pub k: f64,
+    /// Fitness `F` (eq. 18); 2 for a perfect match.
     pub fitness: f64,
+    /// `F_L`, the left image's score.
     pub fitness_left: f64,
+    /// `F_R`, the right image's score.
     pub fitness_right: f64,
+    /// Generations run.
     pub generations: usize,
+    /// The frame the pose is in: always "hand".
     pub frame: &'static str,
 }
 
 impl Report {
+    /// The report of `outcome`'s best individual (sizes from `model`'s `L_P`, `B_P`).
     pub fn new(model: &PhotoModel, outcome: &Outcome) -> Self {
         let b: &PoseSize = &outcome.best;
         Self {

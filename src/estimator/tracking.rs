@@ -223,13 +223,19 @@ const WINDOW_MIN_PX: f64 = 24.0;
 /// Why a frame could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum FrameError {
+    /// The payload is not a whole side-by-side frame of the size its header gives.
     #[error("payload of {len} bytes is smaller than its header says ({width}x{height} per eye, stride {stride})")]
     Incomplete {
+        /// Bytes received.
         len: usize,
+        /// Width of one eye, pixels.
         width: usize,
+        /// Height, pixels.
         height: usize,
+        /// Bytes from one row to the next.
         stride: usize,
     },
+    /// The calibration has no rig for the frame's size.
     #[error(transparent)]
     Calibration(#[from] CalibrationError),
 }

@@ -64,6 +64,7 @@ impl Workers {
         }
     }
 
+    /// Number of workers (1: no pool, the calling thread works alone).
     pub fn threads(&self) -> usize {
         self.threads
     }

@@ -94,11 +94,17 @@ pub fn rgb_to_hsv(r: u8, g: u8, b: u8) -> (u8, u8, u8) {
 /// Fixed-point BT.601 coefficients of YUV → RGB (limited range: Y 16–235, U and V
 /// 16–240 around 128), scaled by 2²⁰ as in OpenCV's `COLOR_YUV2RGB_YUYV`.
 pub mod bt601 {
+    /// Fixed-point fraction bits: the coefficients are scaled by `1 << SHIFT`.
     pub const SHIFT: i32 = 20;
+    /// Luma gain 1.164 on `Y − 16` (all channels).
     pub const CY: i32 = 1_220_542;
+    /// `U − 128` → blue, 2.018.
     pub const CUB: i32 = 2_116_026;
+    /// `U − 128` → green, −0.391.
     pub const CUG: i32 = -409_993;
+    /// `V − 128` → green, −0.813.
     pub const CVG: i32 = -852_492;
+    /// `V − 128` → red, 1.596.
     pub const CVR: i32 = 1_673_527;
     /// Rounding term added before the shift.
     pub const HALF: i32 = 1 << (SHIFT - 1);

@@ -15,17 +15,36 @@ use crate::vision::color::{rgb_to_hsv, ColorClasses};
 /// A problem reading a frame.
 #[derive(Debug, thiserror::Error)]
 pub enum FrameError {
+    /// The image file could not be opened or decoded.
     #[error("cannot read image {path}: {message}")]
-    Image { path: PathBuf, message: String },
+    Image {
+        /// The image file.
+        path: PathBuf,
+        /// The reader's or decoder's message, on one line.
+        message: String,
+    },
+    /// A side-by-side image of odd width cannot be split into two equal eyes.
     #[error("{path}: side-by-side frame width {width} is odd (left and right halves must match)")]
-    OddWidth { path: PathBuf, width: u32 },
+    OddWidth {
+        /// The image file.
+        path: PathBuf,
+        /// Its width, pixels.
+        width: u32,
+    },
+    /// The separate left and right images differ in size.
     #[error("{left} is {lw}x{lh} but {right} is {rw}x{rh}: both eyes must have the same size")]
     SizeMismatch {
+        /// The left image file.
         left: PathBuf,
+        /// The right image file.
         right: PathBuf,
+        /// Left image width, pixels.
         lw: u32,
+        /// Left image height, pixels.
         lh: u32,
+        /// Right image width, pixels.
         rw: u32,
+        /// Right image height, pixels.
         rh: u32,
     },
 }
@@ -33,7 +52,9 @@ pub enum FrameError {
 /// The left and right images of one stereo frame.
 #[derive(Debug, Clone)]
 pub struct StereoImages {
+    /// The left eye's image.
     pub left: RgbImage,
+    /// The right eye's image, the same size.
     pub right: RgbImage,
 }
 
@@ -113,7 +134,9 @@ impl StereoImages {
 /// A rectangle of one eye's pixels.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Region {
+    /// Columns (x), pixels from the eye's left edge.
     pub cols: std::ops::Range<usize>,
+    /// Rows (y), pixels from the eye's top edge.
     pub rows: std::ops::Range<usize>,
 }
 
@@ -176,12 +199,16 @@ pub struct PixelColor {
 /// Colour data of one image, row-major (computed on all cores).
 #[derive(Debug, Clone)]
 pub struct ColorPlane {
+    /// Width, pixels.
     pub width: usize,
+    /// Height, pixels.
     pub height: usize,
+    /// The pixels' colour data, `width × height`, row-major.
     pub px: Vec<PixelColor>,
 }
 
 impl ColorPlane {
+    /// The colour data of `img`: OpenCV HSV and its Table 1 class under `classes`.
     pub fn from_rgb(img: &RgbImage, classes: &ColorClasses) -> Self {
         let px = img
             .as_raw()
@@ -208,8 +235,11 @@ impl ColorPlane {
 pub struct FrameLevel {
     /// Image scale relative to full resolution (1, 1/2, 1/4, …).
     pub scale: f64,
+    /// The stereo rig with its intrinsics scaled to this level's pixels.
     pub rig: StereoRig,
+    /// The left image's colour data at this level.
     pub left: ColorPlane,
+    /// The right image's colour data at this level.
     pub right: ColorPlane,
 }
 

@@ -7,16 +7,19 @@ pub struct Samples {
 }
 
 impl Samples {
+    /// Collects and sorts the values, dropping NaNs.
     pub fn new(values: impl IntoIterator<Item = f64>) -> Self {
         let mut sorted: Vec<f64> = values.into_iter().filter(|v| !v.is_nan()).collect();
         sorted.sort_by(f64::total_cmp);
         Self { sorted }
     }
 
+    /// Number of samples (NaNs excluded).
     pub fn len(&self) -> usize {
         self.sorted.len()
     }
 
+    /// Whether there are no samples.
     pub fn is_empty(&self) -> bool {
         self.sorted.is_empty()
     }
@@ -35,6 +38,7 @@ impl Samples {
         self.percentile(50.0)
     }
 
+    /// The largest sample; NaN when empty.
     pub fn max(&self) -> f64 {
         self.sorted.last().copied().unwrap_or(f64::NAN)
     }

@@ -32,8 +32,11 @@ pub enum OuterRule {
 /// Fitness of one candidate: `F` (eq. 18) and its per-image parts `F_L`, `F_R`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Fitness {
+    /// `F` (eq. 18): the mean of `F_L` and `F_R` times `1 + g`; 2 for a perfect match.
     pub f: f64,
+    /// `F_L` (eq. 12), the left image's score: 1 for a perfect match.
     pub left: f64,
+    /// `F_R`, the right image's score: 1 for a perfect match.
     pub right: f64,
     /// What the search ranks by: `F`, plus in robust mode the weighted share of inner
     /// points on which the two views agree.
@@ -49,13 +52,19 @@ const STEREO_SAT_TOLERANCE: u8 = 25;
 /// points of chromatic colour come first, so the kernel runs two branch-free loops.
 #[derive(Debug, Clone, Default)]
 pub struct PointSet {
+    /// Inner points' x, photo pixels right of the box centre.
     pub inner_x: Vec<f32>,
+    /// Inner points' y, photo pixels down from the box centre.
     pub inner_y: Vec<f32>,
+    /// Inner points' Table 1 colour code: a hue `0..180` or `BLACK`, `GRAY`, `WHITE`.
     pub inner_code: Vec<u8>,
+    /// Inner points' HSV saturation, 0–255.
     pub inner_sat: Vec<u8>,
     /// The first `chromatic` inner points have a chromatic code.
     pub chromatic: usize,
+    /// Outer strip points' x, photo pixels right of the box centre.
     pub outer_x: Vec<f32>,
+    /// Outer strip points' y, photo pixels down from the box centre.
     pub outer_y: Vec<f32>,
 }
 
@@ -111,10 +120,12 @@ impl PointSet {
         }
     }
 
+    /// Number of points, inner and outer.
     pub fn len(&self) -> usize {
         self.inner_x.len() + self.outer_x.len()
     }
 
+    /// Whether the set has no points at all.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -123,7 +134,9 @@ impl PointSet {
 /// Everything the fitness needs that does not change between candidates.
 #[derive(Debug, Clone)]
 pub struct Scorer {
+    /// The `[fitness]` constants: point scores, hue tolerances, `mu`, `sigma`, Table 1.
     pub params: FitnessParams,
+    /// How outer points tell target from background.
     pub rule: OuterRule,
     /// A candidate whose card normal makes |cos| below this with either line of sight
     /// scores 0; seen from behind always scores 0.
@@ -138,16 +151,18 @@ pub struct Scorer {
     pub stereo_weight: f64,
     /// Model frame size `L_P`, `B_P` in photo pixels.
     pub box_px: [f64; 2],
+    /// `CL_T_H`: hand coordinates → left-camera coordinates (mm), the hand–eye calibration.
     pub left_from_hand: Isometry3<f64>,
-    /// `H̄_in` rounded to the nearest OpenCV hue (image hues are integers), and the
-    /// central rectangle's colour code.
+    /// `H̄_in` rounded to the nearest OpenCV hue (image hues are integers).
     pub mean_hue: u8,
+    /// The central rectangle's colour code (see [`PhotoModel::center_code`]).
     pub center_code: u8,
     /// Mean saturation of the central rectangle's chromatic points.
     pub center_sat: u8,
 }
 
 impl Scorer {
+    /// A scorer for `model`; `min_extent_px` and `stereo_weight` start at 0 (off).
     pub fn new(
         model: &PhotoModel,
         params: FitnessParams,
@@ -313,7 +328,9 @@ impl Scorer {
 /// Pixel positions of a model's points in one image.
 #[derive(Debug, Clone)]
 pub struct ProjectedPoints {
+    /// Image pixels of the inner points, in [`PointSet`] order; `None` behind the camera.
     pub inner: Vec<Option<Point2<f64>>>,
+    /// Image pixels of the outer points, in [`PointSet`] order; `None` behind the camera.
     pub outer: Vec<Option<Point2<f64>>>,
 }
 
