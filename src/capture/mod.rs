@@ -60,17 +60,31 @@ impl Source {
 /// A frame source that cannot deliver.
 #[derive(Debug, thiserror::Error)]
 pub enum SourceError {
+    /// `--source` names no source photopose has.
     #[error("unknown source {0:?}: use synthetic[:SCENE.toml], replay:DIR or zed")]
     Unknown(String),
+    /// A recording's description or frame list cannot be read.
     #[error(transparent)]
     Sequence(#[from] sequence::SequenceError),
+    /// A recorded frame file cannot be read or has the wrong size.
     #[error("{path}: {message}")]
-    Frame { path: PathBuf, message: String },
+    Frame {
+        /// The frame file.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// The source cannot start (scene, calibration or camera), in words.
     #[error("{0}")]
     Setup(String),
     /// The buffer lent for a frame is not the frame's size.
     #[error("a {buffer}-byte buffer cannot hold a {frame}-byte frame")]
-    BufferSize { buffer: usize, frame: usize },
+    BufferSize {
+        /// Bytes lent.
+        buffer: usize,
+        /// Bytes of the source's frame.
+        frame: usize,
+    },
 }
 
 /// Layout of the side-by-side frames of a source.

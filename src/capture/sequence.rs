@@ -41,20 +41,46 @@ pub const CSV_HEADER: &str = "frame_id,capture_time_ns,file,x_mm,y_mm,z_mm,qw,qx
 /// A sequence directory that cannot be read or written; one line naming the file.
 #[derive(Debug, thiserror::Error)]
 pub enum SequenceError {
+    /// A file of the recording cannot be read.
     #[error("cannot read {path}: {source}")]
-    Read { path: PathBuf, source: std::io::Error },
-    #[error("cannot write {path}: {source}")]
-    Write { path: PathBuf, source: std::io::Error },
-    #[error("{path}: {message}")]
-    Invalid { path: PathBuf, message: String },
-    #[error("{path}:{line}: {message}")]
-    Line {
+    Read {
+        /// The file.
         path: PathBuf,
-        line: usize,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+    /// A file of the recording cannot be written.
+    #[error("cannot write {path}: {source}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+    /// `sequence.toml` is not a valid recording description.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// The description file.
+        path: PathBuf,
+        /// What is wrong with it.
         message: String,
     },
+    /// A line of `frames.csv` is malformed.
+    #[error("{path}:{line}: {message}")]
+    Line {
+        /// The frame list.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with the line.
+        message: String,
+    },
+    /// `--record` would overwrite an existing recording.
     #[error("{path} already holds a recording; choose a new directory")]
-    Exists { path: PathBuf },
+    Exists {
+        /// The recording's directory.
+        path: PathBuf,
+    },
 }
 
 /// `sequence.toml`.

@@ -18,6 +18,7 @@ use crate::vision::PixelFormat;
 /// about the card normal.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Trajectory {
+    /// The loop's centre pose of the card (`hand_from_model`, mm).
     pub centre: Isometry3<f64>,
     /// Half-extent of the loop along hand x, y, z, mm.
     pub amplitude_mm: [f64; 3],
@@ -119,6 +120,7 @@ impl SyntheticSource {
         })
     }
 
+    /// The card's motion.
     pub fn trajectory(&self) -> &Trajectory {
         &self.trajectory
     }

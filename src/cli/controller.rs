@@ -25,6 +25,7 @@ pub struct ControllerArgs {
 /// How often a status line is printed.
 const STATUS_EVERY: Duration = Duration::from_millis(500);
 
+/// Runs the example controller until interrupted or `--seconds` pass.
 pub fn run(args: &ControllerArgs) -> Result<()> {
     let config = Config::load(args.config.as_deref())?;
     let settings = config.controller;

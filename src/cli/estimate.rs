@@ -10,6 +10,9 @@ use crate::estimator::model::PhotoModel;
 use crate::estimator::oneshot::{self, Prepared, Report};
 use crate::vision::frame::StereoImages;
 
+/// Estimate pose and size from one stereo frame (one-shot GA).
+// `[ga]` in the help texts below names a table of the configuration file, not an item.
+#[allow(rustdoc::broken_intra_doc_links)]
 #[derive(clap::Args, Debug)]
 pub struct EstimateArgs {
     /// Photo-model file written by `photopose model`.
@@ -41,6 +44,7 @@ pub struct EstimateArgs {
     pub overlay: Option<PathBuf>,
 }
 
+/// Runs one estimate and prints (or writes) its result.
 pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
     let config = Config::load(args.config.as_deref())?;
     let model = PhotoModel::load(&args.model)?;

@@ -11,6 +11,7 @@ use crate::detect::{coco, Detection};
 use crate::estimator::model::{DetectionRecord, PhotoModel};
 use crate::vision::frame::load_rgb;
 
+/// Build a photo-model from a photo and the object's box.
 #[derive(clap::Args, Debug)]
 pub struct ModelArgs {
     /// The photo (PNG or JPEG) of an object of the target's category.
@@ -58,6 +59,7 @@ enum BoxSource {
     Detect { class: Option<usize>, min_score: f32 },
 }
 
+/// Builds the photo-model and writes it (and its overlay).
 pub fn run(args: &ModelArgs) -> anyhow::Result<()> {
     let config = Config::load(args.config.as_deref())?;
     let source = match &args.bbox {

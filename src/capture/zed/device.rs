@@ -40,6 +40,7 @@ pub struct CameraInfo {
     pub node: PathBuf,
     /// USB product (vendor 0x2b03), when sysfs knows the node.
     pub product: Option<u16>,
+    /// The camera's serial number, when sysfs has it (it names the calibration file).
     pub serial: Option<String>,
     /// USB link speed, Mb/s.
     pub usb_speed_mbps: Option<u32>,
@@ -54,27 +55,59 @@ pub trait Opener {
 /// A camera that cannot be opened or stopped delivering.
 #[derive(Debug, thiserror::Error)]
 pub enum DeviceError {
+    /// No camera or no calibration was found.
     #[error(transparent)]
     Discovery(#[from] DiscoveryError),
+    /// The video node cannot be opened.
     #[error("cannot open {}: {error}", .node.display())]
-    Open { node: PathBuf, error: std::io::Error },
+    Open {
+        /// `/dev/videoN`.
+        node: PathBuf,
+        /// The system's reason.
+        error: std::io::Error,
+    },
+    /// The node cannot capture video with streaming I/O.
     #[error("{} is not a video capture device with streaming I/O", .node.display())]
-    NotCapture { node: PathBuf },
+    NotCapture {
+        /// `/dev/videoN`.
+        node: PathBuf,
+    },
+    /// The camera does not offer the requested mode (often: plugged into USB 2).
     #[error("{} does not offer {mode} in YUYV; it offers {}{}", .node.display(), mode_list(.offered), usb2_hint(.offered, *.usb_speed_mbps))]
     ModeNotOffered {
+        /// `/dev/videoN`.
         node: PathBuf,
+        /// The mode asked for.
         mode: Mode,
+        /// The YUYV modes the camera offers.
         offered: Vec<Mode>,
+        /// USB link speed, Mb/s, when known.
         usb_speed_mbps: Option<u32>,
     },
+    /// The driver accepted the mode request but set another format.
     #[error("{}: the driver set {got} instead of {mode}", .node.display())]
-    ModeRefused { node: PathBuf, mode: Mode, got: String },
+    ModeRefused {
+        /// `/dev/videoN`.
+        node: PathBuf,
+        /// The mode asked for.
+        mode: Mode,
+        /// The format the driver set instead, in words.
+        got: String,
+    },
+    /// The camera disappeared (ENODEV).
     #[error("{} was unplugged", .node.display())]
-    Unplugged { node: PathBuf },
+    Unplugged {
+        /// `/dev/videoN`.
+        node: PathBuf,
+    },
+    /// Another device call failed.
     #[error("{}: {op} failed: {error}", .node.display())]
     Io {
+        /// `/dev/videoN`.
         node: PathBuf,
+        /// The ioctl or call that failed.
         op: &'static str,
+        /// The system's reason.
         error: std::io::Error,
     },
 }

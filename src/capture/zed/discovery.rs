@@ -20,7 +20,9 @@ pub const SYSTEM_SETTINGS: &str = "/usr/local/zed/settings";
 /// Vendor and product of a USB function.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct UsbId {
+    /// USB vendor id (0x2b03 for Stereolabs).
     pub vendor: u16,
+    /// USB product id.
     pub product: u16,
 }
 
@@ -52,6 +54,7 @@ pub fn product_name(product: u16) -> String {
 pub struct Camera {
     /// `/dev/videoN`.
     pub node: PathBuf,
+    /// The USB function's vendor and product.
     pub id: UsbId,
     /// The camera's serial number, when sysfs has it.
     pub serial: Option<String>,
@@ -62,12 +65,26 @@ pub struct Camera {
 /// Finding a camera or its calibration failed.
 #[derive(Debug, thiserror::Error)]
 pub enum DiscoveryError {
+    /// No video device of vendor 0x2b03 in sysfs.
     #[error("no ZED camera found: no video device in {} has USB vendor 0x2b03 (is it plugged in? `lsusb -d 2b03:` lists it); or pass --device /dev/videoN", .dir.display())]
-    NoCamera { dir: PathBuf },
+    NoCamera {
+        /// The sysfs directory of video devices searched.
+        dir: PathBuf,
+    },
+    /// sysfs has no serial number, so the calibration file is unknown.
     #[error("cannot read the camera's serial number from sysfs, so its calibration file is unknown: set [camera] calibration in a --config file to its SN<serial>.conf (the ZED tools keep it in {})", dir_list(.dirs))]
-    NoSerial { dirs: Vec<PathBuf> },
+    NoSerial {
+        /// Where the ZED tools keep calibration files.
+        dirs: Vec<PathBuf>,
+    },
+    /// The camera's `SN<serial>.conf` is in none of the calibration directories.
     #[error("no SN{serial}.conf in {}: download it from https://calib.stereolabs.com/?SN={serial} into one of them, or set [camera] calibration in a --config file", dir_list(.dirs))]
-    NoCalibration { serial: String, dirs: Vec<PathBuf> },
+    NoCalibration {
+        /// The camera's serial number.
+        serial: String,
+        /// The directories searched.
+        dirs: Vec<PathBuf>,
+    },
 }
 
 fn dir_list(dirs: &[PathBuf]) -> String {
@@ -204,9 +221,10 @@ pub fn find_calibration(
         })
 }
 
-/// A fake sysfs tree for tests: [`SysfsTree::video`] adds a USB camera.
+/// A fake sysfs tree for tests: [`SysfsTree::usb`] adds a USB device and its video nodes.
 #[derive(Debug)]
 pub struct SysfsTree {
+    /// The tree's root, standing in for `/sys`.
     pub root: PathBuf,
 }
 

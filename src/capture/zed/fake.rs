@@ -17,8 +17,11 @@ use crate::camera::calibration::Resolution;
 pub enum Step {
     /// A filled buffer.
     Frame {
+        /// The buffer's bytes.
         bytes: Arc<[u8]>,
+        /// The driver's timestamp, ns.
         timestamp_ns: u64,
+        /// V4L2 buffer flags (timestamp source).
         flags: u32,
     },
     /// A buffer holding only this many bytes.
@@ -63,6 +66,7 @@ pub struct ScriptedOpener {
 }
 
 impl ScriptedOpener {
+    /// An opener whose successive `open` calls play `attempts`.
     pub fn new(attempts: impl IntoIterator<Item = Attempt>) -> Self {
         Self {
             attempts: attempts.into_iter().collect(),
@@ -113,6 +117,7 @@ pub struct ScriptedDevice {
 }
 
 impl ScriptedDevice {
+    /// A device whose successive `next` calls play `steps`.
     pub fn new(steps: Vec<Step>) -> Self {
         Self {
             steps: steps.into(),

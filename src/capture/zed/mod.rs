@@ -24,7 +24,9 @@ use crate::vision::PixelFormat;
 /// A video mode of the ZED 2i: side-by-side YUYV at one resolution and frame rate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Mode {
+    /// Resolution of each eye.
     pub resolution: Resolution,
+    /// Frames per second.
     pub fps: u32,
 }
 
@@ -48,13 +50,21 @@ pub const DEFAULT_MODE: Mode = Mode::new(Resolution::HD, 60);
 /// A mode that cannot be used.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ModeError {
+    /// `--resolution` names no ZED resolution.
     #[error("unknown --resolution {0:?}: use 2K, FHD, HD or VGA")]
     UnknownResolution(String),
+    /// The ZED 2i has no such resolution and frame rate.
     #[error("the ZED 2i has no {resolution} mode at {fps} fps; valid modes: {}", mode_list(&MODES))]
-    Unsupported { resolution: Resolution, fps: String },
+    Unsupported {
+        /// The resolution asked for.
+        resolution: Resolution,
+        /// The frame rate asked for, as given.
+        fps: String,
+    },
 }
 
 impl Mode {
+    /// The mode of `resolution` at `fps`.
     pub const fn new(resolution: Resolution, fps: u32) -> Self {
         Self { resolution, fps }
     }

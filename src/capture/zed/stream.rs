@@ -18,8 +18,11 @@ const WAIT: Duration = Duration::from_millis(100);
 /// `max`; a camera silent for `stall` counts as lost.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Backoff {
+    /// Wait before the first reopen.
     pub first: Duration,
+    /// Longest wait between reopens.
     pub max: Duration,
+    /// Silence after which an open camera counts as lost.
     pub stall: Duration,
 }
 
@@ -62,6 +65,7 @@ pub struct ZedSource<O: Opener> {
     /// While lost: the next attempt and the wait after it fails.
     retry_at: Instant,
     delay: Duration,
+    /// Frames, short buffers, reconnects and timestamp fallbacks so far.
     pub stats: ZedStats,
 }
 
@@ -99,6 +103,7 @@ impl<O: Opener> ZedSource<O> {
         &self.info
     }
 
+    /// The opener (tests inspect what was asked of it).
     pub fn opener(&self) -> &O {
         &self.opener
     }

@@ -32,7 +32,9 @@ const BUFFERS: u32 = 4;
 /// Opens the ZED found in sysfs, or the node `--device` named.
 #[derive(Debug, Clone, Default)]
 pub struct V4l2Opener {
+    /// The node `--device` named; otherwise the ZED found in sysfs.
     pub device: Option<PathBuf>,
+    /// Where cameras are looked for.
     pub sysfs: Sysfs,
 }
 

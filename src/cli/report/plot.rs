@@ -85,13 +85,23 @@ pub struct Panel<'a> {
 pub enum PlotError {
     /// Encoding or writing the PNG failed (e.g. the directory does not exist).
     #[error("cannot write plot {}: {source}", .path.display())]
-    Write { path: PathBuf, source: image::ImageError },
+    Write {
+        /// The PNG file.
+        path: PathBuf,
+        /// The encoder's or the system's reason.
+        source: image::ImageError,
+    },
     /// The embedded font could not be loaded.
     #[error("cannot load the chart font")]
     Font,
     /// Drawing a chart failed.
     #[error("cannot draw the chart {title:?}: {message}")]
-    Draw { title: String, message: String },
+    Draw {
+        /// The chart's title.
+        title: String,
+        /// plotters' reason.
+        message: String,
+    },
 }
 
 /// Draws `panels` stacked top to bottom, each `height / panels.len()` high, on white.
