@@ -98,7 +98,7 @@ impl<O: Opener> ZedSource<O> {
         })
     }
 
-    /// The camera as opened first.
+    /// The camera as last opened (a reconnect replaces it).
     pub fn info(&self) -> &CameraInfo {
         &self.info
     }
