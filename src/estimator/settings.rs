@@ -119,7 +119,13 @@ pub struct GaSettings {
 impl GaSettings {
     /// How many of the population survive each generation (at least 1, at most all but 1).
     pub fn survivor_count(&self) -> usize {
-        ((self.population as f64 * self.survivors).round() as usize).clamp(1, self.population.saturating_sub(1).max(1))
+        self.survivors_of(self.population)
+    }
+
+    /// How many of a population of `n` (e.g. tracking's) survive each generation at this
+    /// survivor share (at least 1, at most all but 1).
+    pub fn survivors_of(&self, n: usize) -> usize {
+        ((n as f64 * self.survivors).round() as usize).clamp(1, n.saturating_sub(1).max(1))
     }
 
     /// These settings if the GA can run with them, else the first field that is wrong.

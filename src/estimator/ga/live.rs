@@ -99,8 +99,7 @@ impl LivePopulation {
     /// Runs `generations` generations on the problem's frame: sort, keep the best share,
     /// replace the others by children made as `breeding` says, score the children.
     pub fn evolve(&mut self, problem: &Problem, generations: usize, breeding: &Breeding, rng: &mut impl Rng) {
-        let n = self.pop.genes.len();
-        let keep = ((n as f64 * breeding.ga.survivors).round() as usize).clamp(1, n - 1);
+        let keep = breeding.ga.survivors_of(self.pop.genes.len());
         let edge = &breeding.edge_moves;
         for _ in 0..generations {
             self.pop.sort(&mut self.order);
