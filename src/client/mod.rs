@@ -71,10 +71,11 @@ impl PoseClient {
     /// how many arrived.
     pub fn poll(&mut self) -> Result<usize, ClientError> {
         let mut n = 0;
-        while let Some(sample) = self.poses.receive().map_err(|e| IpcError::Failed {
-            step: "receive a pose".into(),
-            detail: format!("{e:?}"),
-        })? {
+        while let Some(sample) = self
+            .poses
+            .receive()
+            .map_err(|e| IpcError::failed("receive a pose", e))?
+        {
             let pose = *sample.payload();
             // A restarted estimator starts its frame ids again: newest by capture time.
             if self.newest.is_none_or(|p| pose.capture_time_ns >= p.capture_time_ns) {

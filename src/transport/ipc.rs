@@ -42,7 +42,17 @@ pub enum IpcError {
 }
 
 impl IpcError {
-    fn failed(step: impl Into<String>, error: impl std::fmt::Debug) -> Self {
+    /// iceoryx2 refused the `kind` (`"node"` or `"service"`) name `name`.
+    fn name(kind: &'static str, name: &str, error: impl std::fmt::Debug) -> Self {
+        IpcError::Name {
+            kind,
+            name: name.into(),
+            detail: format!("{error:?}"),
+        }
+    }
+
+    /// `step` failed with iceoryx2's `error`.
+    pub(crate) fn failed(step: impl Into<String>, error: impl std::fmt::Debug) -> Self {
         IpcError::Failed {
             step: step.into(),
             detail: format!("{error:?}"),
@@ -80,11 +90,7 @@ impl Ipc {
     pub fn new(name: &str) -> Result<Self> {
         // iceoryx2's own notices (e.g. "no config file loaded") are not the user's business.
         set_log_level(LogLevel::Error);
-        let node_name = NodeName::new(name).map_err(|e| IpcError::Name {
-            kind: "node",
-            name: name.into(),
-            detail: format!("{e:?}"),
-        })?;
+        let node_name = NodeName::new(name).map_err(|e| IpcError::name("node", name, e))?;
         let node = NodeBuilder::new()
             .name(&node_name)
             .signal_handling_mode(SignalHandlingMode::HandleTerminationRequests)
@@ -101,11 +107,7 @@ impl Ipc {
     }
 
     fn service_name(name: &str) -> Result<ServiceName> {
-        ServiceName::new(name).map_err(|e| IpcError::Name {
-            kind: "service",
-            name: name.into(),
-            detail: format!("{e:?}"),
-        })
+        ServiceName::new(name).map_err(|e| IpcError::name("service", name, e))
     }
 
     /// The frames service.
