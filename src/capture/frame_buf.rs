@@ -19,8 +19,6 @@ pub struct FrameBuf<'a> {
     /// Private: only ever written with initialised bytes, so wrapping an initialised
     /// `&mut [u8]` ([`FrameBuf::from_init`]) is sound.
     bytes: &'a mut [MaybeUninit<u8>],
-    /// Every byte is known to be initialised already.
-    init: bool,
 }
 
 /// Proof that every byte of a [`FrameBuf`] has been written, and the written bytes.
@@ -30,7 +28,7 @@ pub struct Written<'a>(&'a mut [u8]);
 impl<'a> FrameBuf<'a> {
     /// Wraps memory that may be uninitialised (e.g. a loaned sample's payload).
     pub fn uninit(bytes: &'a mut [MaybeUninit<u8>]) -> Self {
-        Self { bytes, init: false }
+        Self { bytes }
     }
 
     /// Wraps an initialised buffer (e.g. a `Vec<u8>` reused for every frame).
@@ -38,7 +36,7 @@ impl<'a> FrameBuf<'a> {
         // SAFETY: `MaybeUninit<u8>` has the layout of `u8`; `FrameBuf` only ever writes
         // initialised bytes into it, so `bytes` is still initialised when its borrow ends.
         let bytes = unsafe { &mut *(std::ptr::from_mut::<[u8]>(bytes) as *mut [MaybeUninit<u8>]) };
-        Self { bytes, init: true }
+        Self { bytes }
     }
 
     /// Bytes in the buffer.
@@ -64,16 +62,6 @@ impl<'a> FrameBuf<'a> {
         unsafe { std::ptr::copy_nonoverlapping(src.as_ptr(), self.bytes.as_mut_ptr().cast::<u8>(), src.len()) };
         // SAFETY: every byte was written just above.
         Ok(Written(unsafe { assume_init(self.bytes) }))
-    }
-
-    /// The buffer as bytes for a source that writes them itself (a renderer, a
-    /// decoder): zeroed first unless they are initialised already.
-    pub fn initialised(self) -> Written<'a> {
-        if !self.init {
-            self.bytes.fill(MaybeUninit::new(0));
-        }
-        // SAFETY: the bytes were initialised (`init`) or have just been zeroed.
-        Written(unsafe { assume_init(self.bytes) })
     }
 }
 
@@ -129,12 +117,10 @@ mod tests {
         assert_eq!(w.bytes(), [1, 2, 3, 4, 5, 6]);
         let e = FrameBuf::uninit(&mut mem).copy_from(&[1, 2]).unwrap_err().to_string();
         assert!(e.contains("6-byte buffer") && e.contains("2-byte frame"), "{e}");
-        let mut w = FrameBuf::uninit(&mut mem).initialised();
-        assert_eq!(w.bytes(), [0; 6]);
-        w.bytes_mut()[0] = 9;
-        // An initialised buffer keeps its bytes.
+        // An initialised buffer is written through.
         let mut vec = vec![7u8; 4];
-        assert_eq!(FrameBuf::from_init(&mut vec).initialised().bytes(), [7; 4]);
         assert_eq!(FrameBuf::from_init(&mut vec).len(), 4);
+        FrameBuf::from_init(&mut vec).copy_from(&[1, 2, 3, 4]).unwrap();
+        assert_eq!(vec, [1, 2, 3, 4]);
     }
 }
