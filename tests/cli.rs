@@ -101,6 +101,8 @@ fn render_model_estimate_pipeline_writes_the_json_contract() {
         "fitness_right",
         "generations",
         "frame",
+        "found",
+        "confidence",
     ];
     let mut got = keys.clone();
     got.sort();

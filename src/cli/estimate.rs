@@ -75,6 +75,18 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         "mode {:?}, {} generations, {} evaluations in {:.3} s; F_L {:.4}, F_R {:.4} (pose of the model in the hand frame)",
         config.ga.mode, outcome.generations, outcome.evaluations, elapsed, outcome.fitness.left, outcome.fitness.right
     );
+    let v = &outcome.verdict;
+    println!(
+        "{}: confidence {:.2} (left–right correlation {:.3}, correlation with the photo {:.3})",
+        if v.found {
+            "found"
+        } else {
+            "NOT found: do not act on this pose"
+        },
+        v.confidence,
+        v.texture.stereo,
+        v.texture.structure
+    );
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&Report::new(&model, &outcome))?;
         std::fs::write(path, text + "\n").map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;

@@ -13,4 +13,5 @@ pub mod pose;
 pub mod realtime;
 pub mod settings;
 pub mod tracking;
+pub mod verify;
 pub mod workers;

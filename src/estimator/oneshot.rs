@@ -5,11 +5,14 @@ use serde::Serialize;
 
 use crate::camera::calibration::CalibrationError;
 use crate::config::Config;
+use crate::estimator::fitness::Fitness;
 use crate::estimator::fitness::{OuterRule, PointSet, Scorer};
 use crate::estimator::ga::{self, Bounds, Outcome, Problem};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::Mode;
+use crate::estimator::verify::texture::{self, Texture};
+use crate::estimator::verify::{BrightnessPyramid, TextureTerm, Verdict};
 use crate::vision::frame::StereoImages;
 use crate::vision::lookup::LevelLookup;
 
@@ -25,6 +28,10 @@ pub struct Prepared {
     pub bounds: Bounds,
     /// The configured method, paper or robust.
     pub mode: Mode,
+    /// Both eyes' brightness at every pyramid level (texture terms and verdict).
+    pub brightness: BrightnessPyramid,
+    /// The thinned model points the texture terms use on each level.
+    pub texture_points: Vec<PointSet>,
 }
 
 impl Prepared {
@@ -41,23 +48,57 @@ impl Prepared {
         let scorer = scorer_for(model, config);
         let start = std::time::Instant::now();
         let levels = LevelLookup::pyramid(images, &rig, levels, &scorer.texel_rule());
+        let brightness = BrightnessPyramid::new(images, levels.len());
         tracing::debug!("frame preparation: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
         let bounds = Bounds::new(&config.search, model, mode == Mode::Robust);
         let points = ga::level_points(model, &scorer, levels.len(), mode == Mode::Robust);
+        let texture_points = points
+            .iter()
+            .enumerate()
+            .map(|(l, p)| p.every(TEXTURE_STRIDE.get(l).copied().unwrap_or(1)))
+            .collect();
         Ok(Self {
             scorer,
             levels,
             points,
             bounds,
             mode,
+            brightness,
+            texture_points,
         })
     }
 
-    /// The search problem over this frame.
+    /// The search problem over this frame (in robust mode with the texture terms).
     pub fn problem<'a>(&'a self, config: &Config) -> Problem<'a> {
-        Problem::new(&self.scorer, &self.levels, &self.points, self.bounds, config.ga.threads)
+        let problem = Problem::new(&self.scorer, &self.levels, &self.points, self.bounds, config.ga.threads);
+        let weight = config.robust.texture_weight;
+        if self.mode == Mode::Paper || weight == 0.0 {
+            return problem;
+        }
+        problem.with_texture(TextureTerm {
+            pyramid: &self.brightness,
+            points: &self.texture_points,
+            weight,
+            below_level: self.levels.len() - 1,
+        })
+    }
+
+    /// The verdict on `best`: texture terms on every model point at full resolution.
+    pub fn verdict(&self, best: &PoseSize) -> Verdict {
+        let texture = texture::score(
+            &self.points[0],
+            &self.levels[0].rig,
+            self.brightness.eyes(0),
+            &self.scorer.left_from_hand,
+            best,
+        );
+        Verdict::of(texture)
     }
 }
+
+/// The texture terms read every n-th model point of level 0, 1, … (they cost more per
+/// point than the colour test).
+const TEXTURE_STRIDE: [usize; 3] = [4, 2, 2];
 
 /// The fitness of the configured mode for `model`.
 pub fn scorer_for(model: &PhotoModel, config: &Config) -> Scorer {
@@ -96,10 +137,12 @@ pub fn search(
     progress: &mut dyn FnMut(usize),
 ) -> Outcome {
     let problem = prepared.problem(config);
-    match prepared.mode {
+    let mut outcome = match prepared.mode {
         Mode::Paper => ga::paper::run(&problem, &config.ga, generations, seed, progress),
         Mode::Robust => ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress),
-    }
+    };
+    outcome.verdict = prepared.verdict(&outcome.best);
+    outcome
 }
 
 /// The `--json` report: exactly the fields of the estimate contract.
@@ -125,6 +168,10 @@ pub struct Report {
     pub generations: usize,
     /// The frame the pose is in: always "hand".
     pub frame: &'static str,
+    /// Whether the object is judged found at this pose (see [`Verdict`]).
+    pub found: bool,
+    /// Confidence in the pose, 0–1.
+    pub confidence: f64,
 }
 
 impl Report {
@@ -142,6 +189,8 @@ impl Report {
             fitness_right: outcome.fitness.right,
             generations: outcome.generations,
             frame: "hand",
+            found: outcome.verdict.found,
+            confidence: outcome.verdict.confidence,
         }
     }
 }
@@ -173,4 +222,17 @@ pub fn table(model: &PhotoModel, outcome: &Outcome) -> String {
         );
     }
     s
+}
+
+/// The robust ranking's view of `pose` on `images`: its fitness at full resolution
+/// (with the texture terms in `score`) and its texture terms on every point.
+pub fn score_at(
+    model: &PhotoModel,
+    images: &StereoImages,
+    config: &Config,
+    pose: &PoseSize,
+) -> Result<(Fitness, Texture), CalibrationError> {
+    let prepared = Prepared::new(model, images, config)?;
+    let fit = prepared.problem(config).evaluate(0, &prepared.bounds.encode(pose));
+    Ok((fit, prepared.verdict(pose).texture))
 }

@@ -194,6 +194,10 @@ pub struct RobustSettings {
     /// that match the model in the left image and whose right pixel shows the same
     /// colour. 0 ranks by `F` alone.
     pub stereo_weight: f64,
+    /// Weight of the texture terms in the ranking: the left–right correlation of
+    /// brightness at the model's points plus their correlation with the photo's
+    /// brightness. 0 leaves them out (and makes every result's verdict "not found").
+    pub texture_weight: f64,
 }
 
 impl RobustSettings {
@@ -228,11 +232,13 @@ impl RobustSettings {
                 format!("{} must lie in [0, 1)", self.min_facing_cos),
             ));
         }
-        if !(self.stereo_weight >= 0.0 && self.stereo_weight.is_finite()) {
-            return Err(invalid(
-                "stereo_weight",
-                format!("{} must be a non-negative number", self.stereo_weight),
-            ));
+        for (field, v) in [
+            ("stereo_weight", self.stereo_weight),
+            ("texture_weight", self.texture_weight),
+        ] {
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(invalid(field, format!("{v} must be a non-negative number")));
+            }
         }
         Ok(self)
     }
@@ -246,11 +252,12 @@ impl Default for RobustSettings {
             restarts: 4,
             prior_samples: 20,
             immigrants: 0.1,
-            refine_evaluations: 3000,
+            refine_evaluations: 1500,
             min_facing_cos: 0.3,
             sat_tolerance: 50,
             min_extent_px: 24.0,
             stereo_weight: 0.5,
+            texture_weight: 3.0,
         }
     }
 }

@@ -97,6 +97,7 @@ fn outline_points(model: &PhotoModel) -> PointSet {
             set.inner_y.push(y as f32);
             set.inner_code.push(0);
             set.inner_sat.push(0);
+            set.inner_v.push(0);
         }
     }
     set

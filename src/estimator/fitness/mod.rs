@@ -60,6 +60,8 @@ pub struct PointSet {
     pub inner_code: Vec<u8>,
     /// Inner points' HSV saturation, 0–255.
     pub inner_sat: Vec<u8>,
+    /// Inner points' HSV value (brightness), 0–255: the photo's texture.
+    pub inner_v: Vec<u8>,
     /// The first `chromatic` inner points have a chromatic code.
     pub chromatic: usize,
     /// Outer strip points' x, photo pixels right of the box centre.
@@ -75,11 +77,11 @@ impl PointSet {
     pub fn from_model(model: &PhotoModel, params: &FitnessParams, stride: usize) -> Self {
         let classes = params.classes();
         let inner: Vec<[f64; 2]> = model.inner.iter().map(|p| [p.x, p.y]).collect();
-        let mut points: Vec<([f64; 2], u8, u8)> = blocks(&inner, model.step_px, stride)
+        let mut points: Vec<([f64; 2], u8, u8, u8)> = blocks(&inner, model.step_px, stride)
             .into_iter()
             .map(|(members, xy)| {
                 let (h, s, v) = mean_hsv(members.iter().map(|&i| &model.inner[i]));
-                (xy, classes.code(h, s, v), s)
+                (xy, classes.code(h, s, v), s, v)
             })
             .collect();
         points.sort_by_key(|p| !is_chromatic(p.1));
@@ -87,11 +89,12 @@ impl PointSet {
             chromatic: points.iter().filter(|p| is_chromatic(p.1)).count(),
             ..Default::default()
         };
-        for ([x, y], code, sat) in points {
+        for ([x, y], code, sat, v) in points {
             set.inner_x.push(x as f32);
             set.inner_y.push(y as f32);
             set.inner_code.push(code);
             set.inner_sat.push(sat);
+            set.inner_v.push(v);
         }
         for (_, [x, y]) in blocks(&model.outer, model.step_px, stride) {
             set.outer_x.push(x as f32);
@@ -114,6 +117,7 @@ impl PointSet {
             inner_y: join(pick(&self.inner_y, 0..c), pick(&self.inner_y, c..n)),
             inner_code: join8(pick8(&self.inner_code, 0..c), pick8(&self.inner_code, c..n)),
             inner_sat: join8(pick8(&self.inner_sat, 0..c), pick8(&self.inner_sat, c..n)),
+            inner_v: join8(pick8(&self.inner_v, 0..c), pick8(&self.inner_v, c..n)),
             chromatic,
             outer_x: pick(&self.outer_x, 0..self.outer_x.len()),
             outer_y: pick(&self.outer_y, 0..self.outer_y.len()),

@@ -7,15 +7,19 @@
 
 pub mod live;
 pub mod paper;
+pub mod polish;
 pub mod robust;
 pub mod scan;
 
 use nalgebra::Vector3;
+use robust::normal;
 
 use crate::estimator::fitness::{Fitness, PointSet, Scorer};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::SearchSpace;
+use crate::estimator::verify::texture::{self, Texture};
+use crate::estimator::verify::{TextureTerm, Verdict};
 use crate::estimator::workers::Workers;
 use crate::vision::lookup::LevelLookup;
 
@@ -118,6 +122,8 @@ pub struct Problem<'a> {
     pub bounds: Bounds,
     /// The threads that evaluate candidates.
     pub workers: Workers,
+    /// The texture terms, where the frame has them (robust mode).
+    pub texture: Option<TextureTerm<'a>>,
 }
 
 impl<'a> Problem<'a> {
@@ -135,14 +141,46 @@ impl<'a> Problem<'a> {
             points,
             bounds,
             workers: Workers::new(threads),
+            texture: None,
         }
     }
 
-    /// Fitness of one candidate on level `l`.
+    /// The problem with the texture terms in its ranking.
+    pub fn with_texture(self, texture: TextureTerm<'a>) -> Self {
+        Self {
+            texture: Some(texture),
+            ..self
+        }
+    }
+
+    /// Fitness of one candidate on level `l`: the colour fitness, and on levels finer
+    /// than [`TextureTerm::below_level`] the weighted texture terms in its score.
     pub fn evaluate(&self, l: usize, g: &Genes) -> Fitness {
         let l = l.min(self.levels.len() - 1);
-        self.scorer
-            .evaluate(&self.points[l], &self.levels[l], &self.bounds.decode(g))
+        let c = self.bounds.decode(g);
+        let mut f = self.scorer.evaluate(&self.points[l], &self.levels[l], &c);
+        if let Some(t) = self.texture.as_ref().filter(|t| l < t.below_level) {
+            if f != Fitness::default() {
+                f.score += t.weight * self.texture_at(l, &t.points[l], &c).sum();
+            }
+        }
+        f
+    }
+
+    /// The texture terms of candidate `c` on level `l` with `points` (zero without a
+    /// texture term).
+    pub fn texture_at(&self, l: usize, points: &PointSet, c: &PoseSize) -> Texture {
+        let Some(t) = &self.texture else {
+            return Texture::default();
+        };
+        let l = l.min(self.levels.len() - 1);
+        texture::score(
+            points,
+            &self.levels[l].rig,
+            t.pyramid.eyes(l),
+            &self.scorer.left_from_hand,
+            c,
+        )
     }
 
     /// Fitness of many candidates on level `l`, split across the worker threads.
@@ -188,6 +226,8 @@ pub struct Outcome {
     pub evaluations: usize,
     /// The best individual at each of the [`snapshot_generations`].
     pub snapshots: Vec<Snapshot>,
+    /// Whether the object is judged found at `best`, and how sure.
+    pub verdict: Verdict,
 }
 
 /// Generations at which the best individual is reported: 100, 500 and the last.

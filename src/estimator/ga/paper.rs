@@ -108,6 +108,7 @@ pub fn run(
         generations,
         evaluations,
         snapshots,
+        verdict: Default::default(),
     }
 }
 

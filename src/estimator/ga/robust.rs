@@ -15,12 +15,16 @@ use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::{GaSettings, RobustSettings};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
+/// Distinct scan regions polished at the end, and evaluations per polish and level.
+const HYPOTHESES: usize = 8;
+const POLISH: usize = 200;
+
 /// Mutation step (normalised gene units) at the start of full-resolution generations;
 /// each coarser level multiplies it by 3.
 const SIGMA_FULL: f64 = 0.006;
 
 /// A standard normal sample (Box–Muller).
-fn normal(rng: &mut impl Rng) -> f64 {
+pub(super) fn normal(rng: &mut impl Rng) -> f64 {
     let u1: f64 = rng.random::<f64>().max(1e-300);
     let u2: f64 = rng.random();
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
@@ -226,6 +230,8 @@ struct Search<'p, 'a> {
     /// Generations whose best individual is reported, and the reports.
     marks: Vec<usize>,
     snapshots: Vec<Snapshot>,
+    /// Distinct regions the scan found, polished beside the GA's result at the end.
+    hypotheses: Vec<Genes>,
 }
 
 impl<'p, 'a> Search<'p, 'a> {
@@ -251,6 +257,7 @@ impl<'p, 'a> Search<'p, 'a> {
             generations,
             marks: snapshot_generations(generations),
             snapshots: Vec::new(),
+            hypotheses: Vec::new(),
         }
     }
 
@@ -265,6 +272,9 @@ impl<'p, 'a> Search<'p, 'a> {
         } else {
             None
         };
+        if let Some(s) = &scanned {
+            self.hypotheses = super::polish::distinct(problem, s, HYPOTHESES, 40.0);
+        }
         tracing::debug!("acquisition scan: {:.0} ms", ms(start));
         let start = Instant::now();
         let oversample = self.robust.prior_samples;
@@ -365,7 +375,13 @@ impl<'p, 'a> Search<'p, 'a> {
     /// Refines the best individual at full resolution ([`refine`]) and reports.
     fn finish(mut self, rng: &mut impl Rng) -> Outcome {
         let start = Instant::now();
-        let (best, fitness, used) = refine(self.problem, self.best(), self.robust.refine_evaluations, rng);
+        let mut hypotheses = vec![self.best()];
+        hypotheses.extend(self.hypotheses.iter().copied());
+        let hypotheses = super::polish::distinct(self.problem, &hypotheses, HYPOTHESES + 1, 20.0);
+        let (best, _) = super::polish::best(self.problem, &hypotheses, 1.min(self.levels - 1), POLISH, rng);
+        tracing::debug!("{} hypotheses polished in {:.0} ms", hypotheses.len(), ms(start));
+        let start = Instant::now();
+        let (best, fitness, used) = refine(self.problem, best, self.robust.refine_evaluations, rng);
         tracing::debug!("refinement: {used} evaluations in {:.0} ms", ms(start));
         let best = self.problem.bounds.decode(&best);
         if let Some(last) = self.snapshots.last_mut() {
@@ -378,6 +394,7 @@ impl<'p, 'a> Search<'p, 'a> {
             generations: self.generations,
             evaluations: self.evaluations + used,
             snapshots: self.snapshots,
+            verdict: Default::default(),
         }
     }
 }
@@ -389,33 +406,7 @@ fn ms(t: Instant) -> f64 {
 
 /// (1+λ) evolution strategy at full resolution with a success-based step size.
 fn refine(problem: &Problem, start: Genes, budget: usize, rng: &mut impl Rng) -> (Genes, Fitness, usize) {
-    let mut best = start;
-    let mut best_fit = problem.evaluate(0, &best);
-    let lambda = (4 * problem.workers.threads()).max(8);
-    let mut sigma = SIGMA_FULL / 2.0;
-    let mut used = 1;
-    let mut kids = vec![[0.0; GENES]; lambda];
-    let mut fit = vec![Fitness::default(); lambda];
-    while used + lambda <= budget {
-        for k in kids.iter_mut() {
-            *k = best;
-            for v in k.iter_mut() {
-                *v = (*v + sigma * normal(rng)).clamp(0.0, 1.0);
-            }
-        }
-        problem.evaluate_batch(0, &kids, &mut fit);
-        used += lambda;
-        let i = best_index(&fit, Ties::First);
-        let f = fit[i];
-        if f.score > best_fit.score {
-            best = kids[i];
-            best_fit = f;
-            sigma = (sigma * 1.3).min(SIGMA_FULL * 2.0);
-        } else {
-            sigma = (sigma * 0.8).max(SIGMA_FULL / 30.0);
-        }
-    }
-    (best, best_fit, used)
+    super::polish::refine(problem, 0, start, budget, SIGMA_FULL, rng)
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use super::{Genes, Problem};
 use crate::estimator::fitness::PointSet;
 use crate::estimator::pose::PoseSize;
+use crate::estimator::verify::texture;
 use crate::vision::lookup::LevelLookup;
 
 /// Pixel step of the position scan on the coarsest level.
@@ -73,6 +74,35 @@ struct Scan<'p, 'a> {
     z_ref: f64,
 }
 
+impl Scan<'_, '_> {
+    /// The scan's score of a placement's candidate `c` with `points` in the left image:
+    /// `F_L` plus the weighted structure term there.
+    fn left_score(&self, points: &PointSet, c: &PoseSize) -> f64 {
+        let (problem, lv) = (self.problem, self.level);
+        let f = problem.scorer.evaluate_left(points, lv, c);
+        match &problem.texture {
+            Some(t) => {
+                let eye = t.pyramid.eyes(problem.levels.len() - 1)[0];
+                let left_from_hand = &problem.scorer.left_from_hand;
+                f + 2.0 * t.weight * texture::structure_in(points, &lv.rig.left, eye, left_from_hand, c)
+            }
+            None => f,
+        }
+    }
+
+    /// The depth scan's score of candidate `c`: the search's score on the coarsest
+    /// level, with the texture terms if the problem has them.
+    fn stereo_score(&self, c: &PoseSize) -> f64 {
+        let problem = self.problem;
+        let l = problem.levels.len() - 1;
+        let f = problem.scorer.evaluate(self.points, self.level, c).score;
+        match &problem.texture {
+            Some(t) if f != 0.0 => f + t.weight * problem.texture_at(l, self.points, c).sum(),
+            _ => f,
+        }
+    }
+}
+
 impl<'p, 'a> Scan<'p, 'a> {
     fn new(problem: &'p Problem<'a>) -> Self {
         let level = problem.levels.len() - 1;
@@ -132,13 +162,13 @@ impl<'p, 'a> Scan<'p, 'a> {
     /// depth: a cheap pass with one point in [`SPARSE`], then every point for the
     /// [`RESCORE`] best of it.
     fn best_placements(&self, placements: &[Placement]) -> Vec<usize> {
-        let (problem, lv) = (self.problem, self.level);
+        let problem = self.problem;
         let sparse = self.points.every(SPARSE);
         let mut rough = vec![0.0; placements.len()];
         problem.par_fill(placements, &mut rough, |pl| {
             problem
                 .scorer
-                .evaluate_left(&sparse, lv, &self.candidate(pl, self.z_ref))
+                .evaluate_left(&sparse, self.level, &self.candidate(pl, self.z_ref))
         });
         let mut order: Vec<usize> = (0..placements.len()).collect();
         let promising = RESCORE.min(order.len());
@@ -148,9 +178,7 @@ impl<'p, 'a> Scan<'p, 'a> {
         }
         let mut exact = vec![0.0; order.len()];
         problem.par_fill(&order, &mut exact, |&i| {
-            problem
-                .scorer
-                .evaluate_left(self.points, lv, &self.candidate(&placements[i], self.z_ref))
+            self.left_score(self.points, &self.candidate(&placements[i], self.z_ref))
         });
         let mut scores = vec![f64::NEG_INFINITY; placements.len()];
         for (&i, &f) in order.iter().zip(&exact) {
@@ -169,12 +197,7 @@ impl<'p, 'a> Scan<'p, 'a> {
             .collect();
         let trials: Vec<(Placement, f64)> = kept.iter().flat_map(|p| depths.iter().map(move |&z| (*p, z))).collect();
         let mut fits = vec![0.0; trials.len()];
-        problem.par_fill(&trials, &mut fits, |(pl, z)| {
-            problem
-                .scorer
-                .evaluate(self.points, self.level, &self.candidate(pl, *z))
-                .score
-        });
+        problem.par_fill(&trials, &mut fits, |(pl, z)| self.stereo_score(&self.candidate(pl, *z)));
         let mut order: Vec<usize> = (0..trials.len()).collect();
         order.sort_by(|&a, &b| fits[b].total_cmp(&fits[a]));
         order

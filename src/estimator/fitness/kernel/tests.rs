@@ -58,6 +58,7 @@ fn points(rng: &mut StdRng) -> PointSet {
             })
             .collect(),
         inner_sat: (0..n).map(|_| rng.random()).collect(),
+        inner_v: (0..n).map(|_| rng.random()).collect(),
         chromatic,
         outer_x: (0..300).map(|_| rng.random_range(-170.0..170.0)).collect(),
         outer_y: (0..300).map(|_| rng.random_range(-120.0..120.0)).collect(),

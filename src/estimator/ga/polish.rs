@@ -1,0 +1,117 @@
+//! Several hypotheses, each polished: the scan's best distinct placements and the GA's
+//! result are each tried at a range of tilts (the scan places the model facing the
+//! camera) and refined by a (1+λ) evolution strategy on the finer levels, where the
+//! texture terms rank candidates. The best polished hypothesis wins. A search that
+//! followed one population could settle on a same-coloured region while the target
+//! sat elsewhere in the frame; this way each plausible region gets its own refinement.
+
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use rand::Rng;
+
+use super::{best_index, normal, Genes, Problem, Ties, GENES};
+use crate::estimator::fitness::Fitness;
+
+/// Tilts tried per hypothesis (degrees), each about 8 axes in the image plane.
+const TILTS_DEG: [f64; 2] = [25.0, 45.0];
+const TILT_AXES: usize = 8;
+
+/// Up to `n` of `candidates` (best first) whose positions are at least `apart_mm`
+/// from each other's.
+pub fn distinct(problem: &Problem, candidates: &[Genes], n: usize, apart_mm: f64) -> Vec<Genes> {
+    let mut kept: Vec<(Genes, Vector3<f64>)> = Vec::with_capacity(n);
+    for g in candidates {
+        let p = problem.bounds.decode(g).position;
+        if kept.iter().all(|(_, q)| (p - q).norm() >= apart_mm) {
+            kept.push((*g, p));
+            if kept.len() == n {
+                break;
+            }
+        }
+    }
+    kept.into_iter().map(|(g, _)| g).collect()
+}
+
+/// `g` and its tilted variants: turned about axes through its centre that lie in the
+/// left image plane.
+fn tilted(problem: &Problem, g: &Genes) -> Vec<Genes> {
+    let p = problem.bounds.decode(g);
+    let left_from_hand = &problem.scorer.left_from_hand;
+    let left = left_from_hand * p.hand_from_model();
+    let mut out = vec![*g];
+    for tilt in TILTS_DEG {
+        for a in 0..TILT_AXES {
+            let angle = std::f64::consts::TAU * a as f64 / TILT_AXES as f64;
+            let axis = Vector3::new(angle.cos(), angle.sin(), 0.0);
+            let turn = UnitQuaternion::from_scaled_axis(axis * tilt.to_radians());
+            let turned = Isometry3::from_parts(left.translation, turn * left.rotation);
+            let mut q = p;
+            let hand = left_from_hand.inverse() * turned;
+            q.position = hand.translation.vector;
+            q.eps = super::super::pose::PoseSize::from_pose(&hand, [1.0, 1.0], 1.0, 1.0).eps;
+            out.push(problem.bounds.encode(&q));
+        }
+    }
+    out
+}
+
+/// The best of `hypotheses` after each is tried at the [`tilted`] variants on `level`
+/// and refined there and on level 0, `evaluations` each per level.
+pub fn best(
+    problem: &Problem,
+    hypotheses: &[Genes],
+    level: usize,
+    evaluations: usize,
+    rng: &mut impl Rng,
+) -> (Genes, Fitness) {
+    let mut results = Vec::with_capacity(hypotheses.len());
+    for h in hypotheses {
+        let variants = tilted(problem, h);
+        let mut fit = vec![Fitness::default(); variants.len()];
+        problem.evaluate_batch(level, &variants, &mut fit);
+        let start = variants[best_index(&fit, Ties::First)];
+        let (g, _, _) = refine(problem, level, start, evaluations, 3.0 * SIGMA, rng);
+        results.push(refine(problem, 0, g, evaluations, SIGMA, rng));
+    }
+    let fits: Vec<Fitness> = results.iter().map(|r| r.1).collect();
+    let (g, f, _) = results[best_index(&fits, Ties::First)];
+    (g, f)
+}
+
+/// Mutation step (normalised gene units) of the polish at full resolution.
+const SIGMA: f64 = 0.006;
+
+/// (1+λ) evolution strategy on `level` from `start` with a success-based step size
+/// (from `sigma`); returns the best, its fitness and the evaluations used.
+pub fn refine(
+    problem: &Problem,
+    level: usize,
+    start: Genes,
+    budget: usize,
+    sigma: f64,
+    rng: &mut impl Rng,
+) -> (Genes, Fitness, usize) {
+    let mut best = start;
+    let mut best_fit = problem.evaluate(level, &best);
+    let lambda = (4 * problem.workers.threads()).max(8);
+    let (mut step, mut used) = (sigma / 2.0, 1);
+    let mut kids = vec![[0.0; GENES]; lambda];
+    let mut fit = vec![Fitness::default(); lambda];
+    while used + lambda <= budget {
+        for k in kids.iter_mut() {
+            *k = best;
+            for v in k.iter_mut() {
+                *v = (*v + step * normal(rng)).clamp(0.0, 1.0);
+            }
+        }
+        problem.evaluate_batch(level, &kids, &mut fit);
+        used += lambda;
+        let i = best_index(&fit, Ties::First);
+        if fit[i].score > best_fit.score {
+            (best, best_fit) = (kids[i], fit[i]);
+            step = (step * 1.3).min(sigma * 2.0);
+        } else {
+            step = (step * 0.8).max(sigma / 30.0);
+        }
+    }
+    (best, best_fit, used)
+}

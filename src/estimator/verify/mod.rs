@@ -1,0 +1,86 @@
+//! What the colour fitness cannot see: texture terms that a same-coloured blob or a
+//! wrong tilt cannot fake ([`texture`]), the frame's brightness pyramid they read, and
+//! the verdict (found or not, with a confidence) reported with every estimate.
+
+pub mod texture;
+
+use crate::estimator::fitness::PointSet;
+use crate::vision::frame::{coarse_levels, StereoImages};
+use texture::{Brightness, Texture};
+
+/// Both eyes' brightness at every pyramid level, level 0 at full resolution.
+pub struct BrightnessPyramid {
+    levels: Vec<[Brightness; 2]>,
+}
+
+impl BrightnessPyramid {
+    /// The pyramid of `images` with `levels` levels (the same halving and blur as the
+    /// colour pyramid's).
+    pub fn new(images: &StereoImages, levels: usize) -> Self {
+        let mut out = vec![[Brightness::of(&images.left), Brightness::of(&images.right)]];
+        out.extend(
+            coarse_levels(images, levels)
+                .iter()
+                .map(|im| [Brightness::of(&im.left), Brightness::of(&im.right)]),
+        );
+        Self { levels: out }
+    }
+
+    /// Both eyes on level `l` (the coarsest if `l` is beyond it).
+    pub fn eyes(&self, l: usize) -> [&Brightness; 2] {
+        let [a, b] = &self.levels[l.min(self.levels.len() - 1)];
+        [a, b]
+    }
+}
+
+/// The texture terms as the search uses them: which pyramid, which model points per
+/// level (a thinned set: the terms cost more per point than the colour test), and how
+/// much they weigh against the colour score.
+pub struct TextureTerm<'a> {
+    /// The frame's brightness.
+    pub pyramid: &'a BrightnessPyramid,
+    /// Model points per pyramid level.
+    pub points: &'a [PointSet],
+    /// Weight of [`Texture::sum`] in [`Fitness::score`].
+    pub weight: f64,
+    /// Levels below this (finer) add the terms to every evaluation; coarser levels
+    /// leave them to the acquisition scan, which uses them itself.
+    pub below_level: usize,
+}
+
+/// The verdict on a result: whether the object is judged found there, and how sure.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Verdict {
+    /// Whether the object is judged found at the reported pose.
+    pub found: bool,
+    /// Confidence in the pose, 0–1.
+    pub confidence: f64,
+    /// The texture terms at the reported pose (every model point, full resolution).
+    pub texture: Texture,
+}
+
+impl Verdict {
+    /// The verdict on a pose whose texture terms at full resolution are `texture`.
+    ///
+    /// The confidence is the weaker of the two terms, each mapped linearly from where
+    /// wrong poses were seen on the accuracy suite (0) to a perfect match (1): stereo
+    /// from [`STEREO_FLOOR`], structure from [`STRUCTURE_FLOOR`]. The object counts as
+    /// found from [`FOUND_CONFIDENCE`] up.
+    pub fn of(texture: Texture) -> Self {
+        let stereo = (texture.stereo - STEREO_FLOOR) / (1.0 - STEREO_FLOOR);
+        let structure = (texture.structure - STRUCTURE_FLOOR) / (1.0 - STRUCTURE_FLOOR);
+        let confidence = stereo.min(structure).clamp(0.0, 1.0);
+        Self {
+            found: confidence >= FOUND_CONFIDENCE,
+            confidence,
+            texture,
+        }
+    }
+}
+
+/// Where the confidence of the stereo and the structure term starts above 0.
+pub const STEREO_FLOOR: f64 = 0.9;
+/// See [`STEREO_FLOOR`].
+pub const STRUCTURE_FLOOR: f64 = 0.8;
+/// The least confidence reported as found.
+pub const FOUND_CONFIDENCE: f64 = 0.75;

@@ -1,0 +1,176 @@
+//! The texture terms of the robust search: at a candidate pose, the model's inner
+//! points are looked up in both images' brightness. Where the pose is right, the left
+//! and right samples show the same surface point (they correlate: **stereo**), and they
+//! follow the photo's own brightness pattern (**structure**). A same-coloured blob at
+//! another depth, or the right place at a wrong tilt, fails one or both: the hue that
+//! the colour fitness compares is flat there, brightness is not. Both are normalised
+//! correlations, so a change of brightness or contrast leaves them unchanged.
+
+use image::RgbImage;
+use nalgebra::{Isometry3, Point3};
+
+use crate::camera::{Intrinsics, StereoRig};
+use crate::estimator::fitness::PointSet;
+use crate::estimator::pose::PoseSize;
+
+/// One eye's brightness (HSV value, the maximum of R, G and B), row-major.
+#[derive(Debug, Clone)]
+pub struct Brightness {
+    width: usize,
+    height: usize,
+    px: Vec<f32>,
+}
+
+impl Brightness {
+    /// The HSV value of every pixel of `img`.
+    pub fn of(img: &RgbImage) -> Self {
+        Self {
+            width: img.width() as usize,
+            height: img.height() as usize,
+            px: img
+                .pixels()
+                .map(|p| p.0.into_iter().max().unwrap_or(0) as f32)
+                .collect(),
+        }
+    }
+
+    /// Bilinear sample at pixel `(u, v)`; `None` outside the image.
+    #[inline]
+    fn sample(&self, u: f64, v: f64) -> Option<f32> {
+        if !(u >= 0.0 && v >= 0.0) {
+            return None;
+        }
+        let (x0, y0) = (u as usize, v as usize);
+        if x0 + 1 >= self.width || y0 + 1 >= self.height {
+            return None;
+        }
+        let (fx, fy) = ((u - x0 as f64) as f32, (v - y0 as f64) as f32);
+        let i = y0 * self.width + x0;
+        let p = &self.px;
+        let top = p[i] + fx * (p[i + 1] - p[i]);
+        let bottom = p[i + self.width] + fx * (p[i + self.width + 1] - p[i + self.width]);
+        Some(top + fy * (bottom - top))
+    }
+}
+
+/// The texture terms of one candidate, each a normalised correlation in `[-1, 1]`
+/// scaled by the share of points seen by both cameras; 0 where a signal is flat.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Texture {
+    /// Left against right brightness at the same model points.
+    pub stereo: f64,
+    /// The photo's brightness against each image's, averaged over the two eyes.
+    pub structure: f64,
+}
+
+impl Texture {
+    /// Their sum, what the search adds to the colour score (weighted).
+    pub fn sum(&self) -> f64 {
+        self.stereo + self.structure
+    }
+}
+
+/// Running sums of a normalised cross-correlation.
+#[derive(Debug, Clone, Copy, Default)]
+struct Ncc {
+    n: f64,
+    sa: f64,
+    sb: f64,
+    saa: f64,
+    sbb: f64,
+    sab: f64,
+}
+
+/// Below this standard deviation (grey levels) a signal counts as flat.
+const FLAT_STD: f64 = 2.0;
+
+impl Ncc {
+    #[inline]
+    fn add(&mut self, a: f32, b: f32) {
+        let (a, b) = (a as f64, b as f64);
+        self.n += 1.0;
+        self.sa += a;
+        self.sb += b;
+        self.saa += a * a;
+        self.sbb += b * b;
+        self.sab += a * b;
+    }
+
+    fn value(&self) -> f64 {
+        if self.n < 8.0 {
+            return 0.0;
+        }
+        let va = self.saa / self.n - (self.sa / self.n).powi(2);
+        let vb = self.sbb / self.n - (self.sb / self.n).powi(2);
+        if va < FLAT_STD * FLAT_STD || vb < FLAT_STD * FLAT_STD {
+            return 0.0;
+        }
+        (self.sab / self.n - self.sa * self.sb / (self.n * self.n)) / (va * vb).sqrt()
+    }
+}
+
+/// The model's inner points in the left camera's frame for candidate `c`.
+fn left_points<'a>(
+    points: &'a PointSet,
+    left_from_hand: &Isometry3<f64>,
+    c: &PoseSize,
+) -> impl Iterator<Item = (Point3<f64>, f32)> + 'a {
+    let left_from_model = left_from_hand * c.hand_from_model();
+    let (ia, ib) = (1.0 / c.alpha, 1.0 / c.beta());
+    points
+        .inner_x
+        .iter()
+        .zip(&points.inner_y)
+        .zip(&points.inner_v)
+        .map(move |((&x, &y), &v)| {
+            (
+                left_from_model * Point3::new(x as f64 * ia, y as f64 * ib, 0.0),
+                v as f32,
+            )
+        })
+}
+
+/// Both texture terms of candidate `c` (hand frame; `left_from_hand` the hand–eye
+/// transform) on images `[left, right]` seen through `rig`.
+pub fn score(
+    points: &PointSet,
+    rig: &StereoRig,
+    eyes: [&Brightness; 2],
+    left_from_hand: &Isometry3<f64>,
+    c: &PoseSize,
+) -> Texture {
+    let (mut stereo, mut model_left, mut model_right) = (Ncc::default(), Ncc::default(), Ncc::default());
+    for (p, m) in left_points(points, left_from_hand, c) {
+        let (Some(l), Some(r)) = rig.project_both(&p) else {
+            continue;
+        };
+        let (Some(a), Some(b)) = (eyes[0].sample(l.x, l.y), eyes[1].sample(r.x, r.y)) else {
+            continue;
+        };
+        stereo.add(a, b);
+        model_left.add(m, a);
+        model_right.add(m, b);
+    }
+    let seen = stereo.n / points.inner_v.len().max(1) as f64;
+    Texture {
+        stereo: stereo.value() * seen,
+        structure: (model_left.value() + model_right.value()) / 2.0 * seen,
+    }
+}
+
+/// The structure term in one camera only (the scan, before depth is known).
+pub fn structure_in(
+    points: &PointSet,
+    cam: &Intrinsics,
+    eye: &Brightness,
+    left_from_hand: &Isometry3<f64>,
+    c: &PoseSize,
+) -> f64 {
+    let mut ncc = Ncc::default();
+    for (p, m) in left_points(points, left_from_hand, c) {
+        if let Some(a) = cam.project(&p).and_then(|l| eye.sample(l.x, l.y)) {
+            ncc.add(m, a);
+        }
+    }
+    ncc.value() * ncc.n / points.inner_v.len().max(1) as f64
+}
