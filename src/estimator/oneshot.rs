@@ -83,16 +83,25 @@ impl Prepared {
         })
     }
 
-    /// The verdict on `best`: texture terms on every model point at full resolution.
+    /// The verdict on `best`: texture terms on every model point at full resolution,
+    /// and how much they drop when the pose is moved by the tolerance (see [`Verdict`]).
     pub fn verdict(&self, best: &PoseSize) -> Verdict {
-        let texture = texture::score(
-            &self.points[0],
-            &self.levels[0].rig,
-            self.brightness.eyes(0),
-            &self.scorer.left_from_hand,
-            best,
-        );
-        Verdict::of(texture)
+        let texture = |p: &PoseSize| {
+            texture::score(
+                &self.points[0],
+                &self.levels[0].rig,
+                self.brightness.eyes(0),
+                &self.scorer.left_from_hand,
+                p,
+                true,
+            )
+        };
+        let at = texture(best);
+        let drop = crate::estimator::verify::perturbations(best, &self.scorer.left_from_hand)
+            .iter()
+            .map(|p| at.sum() - texture(p).sum())
+            .fold(f64::INFINITY, f64::min);
+        Verdict::of(at, drop)
     }
 }
 

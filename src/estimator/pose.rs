@@ -58,6 +58,15 @@ impl PoseSize {
         }
     }
 
+    /// This pose with the size (`α`, `k`) of `other`.
+    pub fn with_size_of(self, other: &PoseSize) -> Self {
+        Self {
+            alpha: other.alpha,
+            k: other.k,
+            ..self
+        }
+    }
+
     /// The orientation as `[w, x, y, z]` with `w ≥ 0`.
     pub fn orientation_wxyz(&self) -> [f64; 4] {
         wxyz(&self.rotation())

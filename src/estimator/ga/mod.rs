@@ -5,6 +5,7 @@
 //! seeded by the exhaustive [`scan`]. Both evaluate only new individuals, in parallel,
 //! from a seeded RNG. Tracking keeps a [`live::LivePopulation`] from frame to frame.
 
+pub mod cmaes;
 pub mod live;
 pub mod paper;
 pub mod polish;
@@ -161,7 +162,8 @@ impl<'a> Problem<'a> {
         let mut f = self.scorer.evaluate(&self.points[l], &self.levels[l], &c);
         if let Some(t) = self.texture.as_ref().filter(|t| l < t.below_level) {
             if f != Fitness::default() {
-                f.score += t.weight * self.texture_at(l, &t.points[l], &c).sum();
+                let tl = l.max(std::env::var("TEXL").ok().and_then(|v| v.parse().ok()).unwrap_or(0)).min(self.levels.len() - 1);
+                f.score += t.weight * self.texture_at(tl, &t.points[tl], &c).sum();
             }
         }
         f
@@ -180,6 +182,7 @@ impl<'a> Problem<'a> {
             t.pyramid.eyes(l),
             &self.scorer.left_from_hand,
             c,
+            false,
         )
     }
 

@@ -10,9 +10,10 @@ use rand::Rng;
 
 use super::{best_index, normal, Genes, Problem, Ties, GENES};
 use crate::estimator::fitness::Fitness;
+use crate::estimator::pose::PoseSize;
 
 /// Tilts tried per hypothesis (degrees), each about 8 axes in the image plane.
-const TILTS_DEG: [f64; 2] = [25.0, 45.0];
+const TILTS_DEG: [f64; 3] = [15.0, 30.0, 45.0];
 const TILT_AXES: usize = 8;
 
 /// Up to `n` of `candidates` (best first) whose positions are at least `apart_mm`
@@ -31,23 +32,32 @@ pub fn distinct(problem: &Problem, candidates: &[Genes], n: usize, apart_mm: f64
     kept.into_iter().map(|(g, _)| g).collect()
 }
 
-/// `g` and its tilted variants: turned about axes through its centre that lie in the
-/// left image plane.
+/// `p` turned by `tilt` (radians) about the left-camera axis `axis` through its centre,
+/// and stretched across the axis by `1 / cos tilt` so that its image keeps the extent
+/// that the untilted candidate had.
+pub fn tilt_about(p: &PoseSize, left_from_hand: &Isometry3<f64>, axis: Vector3<f64>, tilt: f64) -> PoseSize {
+    let left = left_from_hand * p.hand_from_model();
+    let (mx, my) = (left.rotation * Vector3::x(), left.rotation * Vector3::y());
+    let across = Vector3::z().cross(&axis);
+    let stretch = 1.0 / tilt.cos().abs().max(0.2) - 1.0;
+    let turn = UnitQuaternion::from_scaled_axis(axis * tilt);
+    let hand = left_from_hand.inverse() * Isometry3::from_parts(left.translation, turn * left.rotation);
+    let (fl, fb) = (1.0 + stretch * mx.dot(&across).powi(2), 1.0 + stretch * my.dot(&across).powi(2));
+    let mut q = PoseSize::from_pose(&hand, [1.0, 1.0], 1.0, 1.0);
+    q.alpha = p.alpha / fl;
+    q.k = p.k * fl / fb;
+    q
+}
+
+/// `g` and its tilted variants ([`tilt_about`] axes in the image plane).
 fn tilted(problem: &Problem, g: &Genes) -> Vec<Genes> {
     let p = problem.bounds.decode(g);
-    let left_from_hand = &problem.scorer.left_from_hand;
-    let left = left_from_hand * p.hand_from_model();
     let mut out = vec![*g];
     for tilt in TILTS_DEG {
         for a in 0..TILT_AXES {
             let angle = std::f64::consts::TAU * a as f64 / TILT_AXES as f64;
             let axis = Vector3::new(angle.cos(), angle.sin(), 0.0);
-            let turn = UnitQuaternion::from_scaled_axis(axis * tilt.to_radians());
-            let turned = Isometry3::from_parts(left.translation, turn * left.rotation);
-            let mut q = p;
-            let hand = left_from_hand.inverse() * turned;
-            q.position = hand.translation.vector;
-            q.eps = super::super::pose::PoseSize::from_pose(&hand, [1.0, 1.0], 1.0, 1.0).eps;
+            let q = tilt_about(&p, &problem.scorer.left_from_hand, axis, tilt.to_radians());
             out.push(problem.bounds.encode(&q));
         }
     }
@@ -69,6 +79,12 @@ pub fn best(
         let mut fit = vec![Fitness::default(); variants.len()];
         problem.evaluate_batch(level, &variants, &mut fit);
         let start = variants[best_index(&fit, Ties::First)];
+        if std::env::var("CMA").is_ok() {
+            let (g, _) = super::cmaes::maximise(problem, level, start, 0.03, evaluations, rng);
+            let (g, f) = super::cmaes::maximise(problem, 0, g, 0.01, evaluations, rng);
+            results.push((g, f, 0));
+            continue;
+        }
         let (g, _, _) = refine(problem, level, start, evaluations, 3.0 * SIGMA, rng);
         results.push(refine(problem, 0, g, evaluations, SIGMA, rng));
     }

@@ -171,7 +171,7 @@ impl<'p, 'a> Scan<'p, 'a> {
                 .evaluate_left(&sparse, self.level, &self.candidate(pl, self.z_ref))
         });
         let mut order: Vec<usize> = (0..placements.len()).collect();
-        let promising = RESCORE.min(order.len());
+        let promising = std::env::var("RESCORE").ok().and_then(|v| v.parse().ok()).unwrap_or(RESCORE).min(order.len());
         if promising < order.len() {
             order.select_nth_unstable_by(promising, |&a, &b| rough[b].total_cmp(&rough[a]));
             order.truncate(promising);
@@ -223,7 +223,7 @@ fn distinct(placements: &[Placement], order: &[usize]) -> Vec<Placement> {
         });
         if !near {
             kept.push(p);
-            if kept.len() == KEEP {
+            if kept.len() == std::env::var("KEEP").ok().and_then(|v| v.parse().ok()).unwrap_or(KEEP) {
                 break;
             }
         }

@@ -13,30 +13,43 @@ use crate::camera::{Intrinsics, StereoRig};
 use crate::estimator::fitness::PointSet;
 use crate::estimator::pose::PoseSize;
 
-/// One eye's brightness (HSV value, the maximum of R, G and B), row-major.
+/// One eye's brightness (HSV value, the maximum of R, G and B), row-major, and its
+/// detail: the brightness minus its 5 × 5 mean, which keeps only the fine texture.
 #[derive(Debug, Clone)]
 pub struct Brightness {
     width: usize,
     height: usize,
     px: Vec<f32>,
+    detail: Vec<f32>,
+    /// Variance of the sensor noise in the detail, estimated from the image's
+    /// flattest blocks.
+    noise_var: f32,
 }
 
+/// Half-width of the box mean that [`Brightness`] subtracts for the detail.
+const DETAIL_RADIUS: usize = 2;
+
 impl Brightness {
-    /// The HSV value of every pixel of `img`.
+    /// The HSV value of every pixel of `img`, and its detail.
     pub fn of(img: &RgbImage) -> Self {
+        let (width, height) = (img.width() as usize, img.height() as usize);
+        let px: Vec<f32> = img.pixels().map(|p| p.0.into_iter().max().unwrap_or(0) as f32).collect();
+        let mean = box_mean(&px, width, height, DETAIL_RADIUS);
+        let detail: Vec<f32> = px.iter().zip(&mean).map(|(a, m)| a - m).collect();
+        let noise_var = noise_variance(&detail, width, height);
         Self {
-            width: img.width() as usize,
-            height: img.height() as usize,
-            px: img
-                .pixels()
-                .map(|p| p.0.into_iter().max().unwrap_or(0) as f32)
-                .collect(),
+            width,
+            height,
+            px,
+            detail,
+            noise_var,
         }
     }
 
-    /// Bilinear sample at pixel `(u, v)`; `None` outside the image.
+    /// Bilinear samples of the brightness and the detail at pixel `(u, v)`, and the
+    /// variance of the noise in that detail sample; `None` outside the image.
     #[inline]
-    fn sample(&self, u: f64, v: f64) -> Option<f32> {
+    fn sample(&self, u: f64, v: f64) -> Option<(f32, f32, f32)> {
         if !(u >= 0.0 && v >= 0.0) {
             return None;
         }
@@ -46,18 +59,65 @@ impl Brightness {
         }
         let (fx, fy) = ((u - x0 as f64) as f32, (v - y0 as f64) as f32);
         let i = y0 * self.width + x0;
-        let p = &self.px;
-        let top = p[i] + fx * (p[i + 1] - p[i]);
-        let bottom = p[i + self.width] + fx * (p[i + self.width + 1] - p[i + self.width]);
-        Some(top + fy * (bottom - top))
+        let w = self.width;
+        let at = |p: &[f32]| {
+            let top = p[i] + fx * (p[i + 1] - p[i]);
+            let bottom = p[i + w] + fx * (p[i + w + 1] - p[i + w]);
+            top + fy * (bottom - top)
+        };
+        let w2 = ((1.0 - fx).powi(2) + fx * fx) * ((1.0 - fy).powi(2) + fy * fy);
+        Some((at(&self.px), at(&self.detail), self.noise_var * w2))
     }
+}
+
+/// The noise variance of a detail image: the variance of its flattest 8 × 8 blocks
+/// (the 5th percentile), where only noise is left.
+fn noise_variance(detail: &[f32], w: usize, h: usize) -> f32 {
+    const B: usize = 8;
+    let mut vars = Vec::with_capacity((w / B) * (h / B));
+    for by in 0..h / B {
+        for bx in 0..w / B {
+            let (mut s, mut ss) = (0.0f32, 0.0f32);
+            for y in by * B..(by + 1) * B {
+                for &d in &detail[y * w + bx * B..y * w + (bx + 1) * B] {
+                    s += d;
+                    ss += d * d;
+                }
+            }
+            let n = (B * B) as f32;
+            vars.push(ss / n - (s / n).powi(2));
+        }
+    }
+    if vars.is_empty() {
+        return 0.0;
+    }
+    let k = vars.len() / 20;
+    *vars.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
+/// The mean of each pixel's `(2r + 1)²` neighbourhood (clamped at the edges).
+fn box_mean(px: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    let pass = |src: &[f32], stride: usize, len: usize, lines: usize, step: usize| {
+        let mut out = vec![0.0f32; src.len()];
+        for line in 0..lines {
+            let at = |k: usize| src[line * step + k * stride];
+            for k in 0..len {
+                let (a, b) = (k.saturating_sub(r), (k + r).min(len - 1));
+                let sum: f32 = (a..=b).map(at).sum();
+                out[line * step + k * stride] = sum / (b - a + 1) as f32;
+            }
+        }
+        out
+    };
+    let rows = pass(px, 1, w, h, w);
+    pass(&rows, w, h, w, 1)
 }
 
 /// The texture terms of one candidate, each a normalised correlation in `[-1, 1]`
 /// scaled by the share of points seen by both cameras; 0 where a signal is flat.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Texture {
-    /// Left against right brightness at the same model points.
+    /// Left against right brightness detail at the same model points.
     pub stereo: f64,
     /// The photo's brightness against each image's, averaged over the two eyes.
     pub structure: f64,
@@ -73,6 +133,9 @@ impl Texture {
 /// Running sums of a normalised cross-correlation.
 #[derive(Debug, Clone, Copy, Default)]
 struct Ncc {
+    /// Summed noise variances of the two signals' samples (for the correction).
+    noise_a: f64,
+    noise_b: f64,
     n: f64,
     sa: f64,
     sb: f64,
@@ -97,15 +160,27 @@ impl Ncc {
     }
 
     fn value(&self) -> f64 {
+        self.corrected(false)
+    }
+
+    /// The correlation; `denoised`: of the signals without their noise (the classic
+    /// correction for attenuation: the noise variance leaves the denominator), so that
+    /// a noisy image of the right pose still correlates near 1.
+    fn corrected(&self, denoised: bool) -> f64 {
         if self.n < 8.0 {
             return 0.0;
         }
-        let va = self.saa / self.n - (self.sa / self.n).powi(2);
-        let vb = self.sbb / self.n - (self.sb / self.n).powi(2);
+        let (na, nb) = if denoised {
+            (self.noise_a / self.n, self.noise_b / self.n)
+        } else {
+            (0.0, 0.0)
+        };
+        let va = self.saa / self.n - (self.sa / self.n).powi(2) - na;
+        let vb = self.sbb / self.n - (self.sb / self.n).powi(2) - nb;
         if va < FLAT_STD * FLAT_STD || vb < FLAT_STD * FLAT_STD {
             return 0.0;
         }
-        (self.sab / self.n - self.sa * self.sb / (self.n * self.n)) / (va * vb).sqrt()
+        ((self.sab / self.n - self.sa * self.sb / (self.n * self.n)) / (va * vb).sqrt()).clamp(-1.0, 1.0)
     }
 }
 
@@ -130,7 +205,8 @@ fn left_points<'a>(
         })
 }
 
-/// Both texture terms of candidate `c` (hand frame; `left_from_hand` the hand–eye
+/// Both texture terms of candidate `c` (stereo on the detail, structure on the
+/// brightness itself) (hand frame; `left_from_hand` the hand–eye
 /// transform) on images `[left, right]` seen through `rig`.
 pub fn score(
     points: &PointSet,
@@ -138,22 +214,25 @@ pub fn score(
     eyes: [&Brightness; 2],
     left_from_hand: &Isometry3<f64>,
     c: &PoseSize,
+    denoised: bool,
 ) -> Texture {
     let (mut stereo, mut model_left, mut model_right) = (Ncc::default(), Ncc::default(), Ncc::default());
     for (p, m) in left_points(points, left_from_hand, c) {
         let (Some(l), Some(r)) = rig.project_both(&p) else {
             continue;
         };
-        let (Some(a), Some(b)) = (eyes[0].sample(l.x, l.y), eyes[1].sample(r.x, r.y)) else {
+        let (Some((a, da, na)), Some((b, db, nb))) = (eyes[0].sample(l.x, l.y), eyes[1].sample(r.x, r.y)) else {
             continue;
         };
-        stereo.add(a, b);
+        stereo.add(da, db);
+        stereo.noise_a += na as f64;
+        stereo.noise_b += nb as f64;
         model_left.add(m, a);
         model_right.add(m, b);
     }
     let seen = stereo.n / points.inner_v.len().max(1) as f64;
     Texture {
-        stereo: stereo.value() * seen,
+        stereo: stereo.corrected(denoised) * seen,
         structure: (model_left.value() + model_right.value()) / 2.0 * seen,
     }
 }
@@ -168,7 +247,7 @@ pub fn structure_in(
 ) -> f64 {
     let mut ncc = Ncc::default();
     for (p, m) in left_points(points, left_from_hand, c) {
-        if let Some(a) = cam.project(&p).and_then(|l| eye.sample(l.x, l.y)) {
+        if let Some((a, _, _)) = cam.project(&p).and_then(|l| eye.sample(l.x, l.y)) {
             ncc.add(m, a);
         }
     }
