@@ -10,5 +10,6 @@ mod common;
 mod detect;
 mod robustness;
 mod scenes;
+mod suite;
 mod tracking;
 mod zed;

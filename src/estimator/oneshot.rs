@@ -174,3 +174,17 @@ pub fn table(model: &PhotoModel, outcome: &Outcome) -> String {
     }
     s
 }
+
+/// The fitness of `pose` on `images` at full resolution, evaluated on the same problem
+/// [`run`] searches (so its `score` ranks against an outcome's): e.g. the ground truth's
+/// score, to tell a search that missed the peak from a fitness whose peak is elsewhere.
+pub fn score_at(
+    model: &PhotoModel,
+    images: &StereoImages,
+    config: &Config,
+    pose: &PoseSize,
+) -> Result<crate::estimator::fitness::Fitness, CalibrationError> {
+    let prepared = Prepared::new(model, images, config)?;
+    let problem = prepared.problem(config);
+    Ok(problem.evaluate(0, &problem.bounds.encode(pose)))
+}

@@ -1,0 +1,183 @@
+//! The suite's table (printed and written as Markdown to `target/suite/suite.md`), its
+//! summary per group, and the accuracy targets.
+
+use std::fmt::Write as _;
+
+use crate::accuracy::{median, Errors};
+
+/// Success: within 10 mm, 5 % and 5° of the truth.
+const SUCCESS: Errors = Errors {
+    position: 10.0,
+    size: 0.05,
+    rotation: 5.0,
+};
+/// The targets: shares of successes, and medians (mm, relative, degrees) per group.
+const CLEAN_SUCCESS: f64 = 0.95;
+const HARD_SUCCESS: f64 = 0.85;
+const MEDIANS: Errors = Errors {
+    position: 3.0,
+    size: 0.02,
+    rotation: 2.0,
+};
+
+/// One scene's results.
+#[derive(Debug, Clone)]
+pub struct Row {
+    pub name: &'static str,
+    pub hard: bool,
+    pub resolution: &'static str,
+    pub extent_px: f64,
+    pub robust: Errors,
+    /// `None` where the paper mode was not run.
+    pub paper: Option<Errors>,
+    /// The robust result's and the truth's score (the rank the search uses).
+    pub score_result: f64,
+    pub score_truth: f64,
+    /// Seconds of the robust estimate.
+    pub seconds: f64,
+}
+
+impl Row {
+    /// The truth scores above what the search returned: the search missed the peak.
+    pub fn truth_outranks(&self) -> bool {
+        self.score_truth > self.score_result
+    }
+}
+
+/// Within the success bounds.
+fn success(e: &Errors) -> bool {
+    e.position <= SUCCESS.position && e.size <= SUCCESS.size && e.rotation <= SUCCESS.rotation
+}
+
+/// `e` as table cells: position mm, size %, rotation °.
+fn cells(e: Option<&Errors>) -> [String; 3] {
+    match e {
+        Some(e) => [
+            format!("{:.1}", e.position),
+            format!("{:.1}", e.size * 100.0),
+            format!("{:.1}", e.rotation),
+        ],
+        None => ["–".into(), "–".into(), "–".into()],
+    }
+}
+
+/// The header and one line per row, as Markdown table lines.
+pub fn table(rows: &[Row]) -> Vec<String> {
+    let mut lines = vec![
+        "| scene | kind | res | px | pos mm | size % | rot ° | paper pos | size % | rot ° | score | truth score | truth > result | s |"
+            .to_string(),
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|".to_string(),
+    ];
+    for r in rows {
+        let [p, s, o] = cells(Some(&r.robust));
+        let [pp, ps, po] = cells(r.paper.as_ref());
+        lines.push(format!(
+            "| {} | {} | {} | {:.0} | {p} | {s} | {o} | {pp} | {ps} | {po} | {:.3} | {:.3} | {} | {:.1} |",
+            r.name,
+            if r.hard { "hard" } else { "clean" },
+            r.resolution,
+            r.extent_px,
+            r.score_result,
+            r.score_truth,
+            if r.truth_outranks() { "yes" } else { "" },
+            r.seconds,
+        ));
+    }
+    lines
+}
+
+/// One group's figures: successes, medians of the robust mode (and of the paper mode
+/// where run).
+pub struct Summary {
+    pub label: &'static str,
+    pub count: usize,
+    pub success: f64,
+    pub medians: Errors,
+    pub paper_success: Option<f64>,
+}
+
+/// The summary of the rows with `hard` as given.
+pub fn summary(rows: &[Row], hard: bool) -> Summary {
+    let sel: Vec<&Row> = rows.iter().filter(|r| r.hard == hard).collect();
+    let share = |n: usize, of: usize| n as f64 / of.max(1) as f64;
+    let of = |f: fn(&Errors) -> f64| median(sel.iter().map(|r| f(&r.robust)).collect());
+    let paper: Vec<&Errors> = sel.iter().filter_map(|r| r.paper.as_ref()).collect();
+    Summary {
+        label: if hard { "hard" } else { "clean" },
+        count: sel.len(),
+        success: share(sel.iter().filter(|r| success(&r.robust)).count(), sel.len()),
+        medians: Errors {
+            position: of(|e| e.position),
+            size: of(|e| e.size),
+            rotation: of(|e| e.rotation),
+        },
+        paper_success: (!paper.is_empty()).then(|| share(paper.iter().filter(|e| success(e)).count(), paper.len())),
+    }
+}
+
+/// The summary lines: per group, then the truth-outranks count and the wall time.
+pub fn summary_lines(rows: &[Row], seconds: f64) -> Vec<String> {
+    let mut lines = Vec::new();
+    for s in [summary(rows, false), summary(rows, true)] {
+        let mut line = format!(
+            "{} ({} scenes): robust {:.0} % within 10 mm, 5 %, 5°; medians {:.1} mm, {:.1} %, {:.1}°",
+            s.label,
+            s.count,
+            s.success * 100.0,
+            s.medians.position,
+            s.medians.size * 100.0,
+            s.medians.rotation
+        );
+        if let Some(p) = s.paper_success {
+            let _ = write!(line, "; paper {:.0} % within", p * 100.0);
+        }
+        lines.push(line);
+    }
+    let outranks = rows.iter().filter(|r| r.truth_outranks()).count();
+    lines.push(format!(
+        "truth outranks the robust result on {outranks} of {} scenes (the fitness peaks at the truth, the search missed it)",
+        rows.len()
+    ));
+    lines.push(format!("total wall time {seconds:.0} s"));
+    lines
+}
+
+/// Writes the table and summary as Markdown to `target/suite/suite.md`.
+pub fn write_markdown(rows: &[Row], seconds: f64) {
+    let dir = crate::common::repo("target/suite");
+    std::fs::create_dir_all(&dir).expect("target/suite");
+    let mut text = table(rows).join("\n");
+    text.push_str("\n\n");
+    for line in summary_lines(rows, seconds) {
+        let _ = writeln!(text, "- {line}");
+    }
+    std::fs::write(dir.join("suite.md"), text).expect("suite.md");
+}
+
+/// The targets: ≥ 95 % of clean and ≥ 85 % of hard scenes within 10 mm, 5 %,
+/// 5°; medians ≤ 3 mm, 2 %, 2° in each group.
+pub fn assert_targets(rows: &[Row]) {
+    let mut failures = Vec::new();
+    for (hard, share) in [(false, CLEAN_SUCCESS), (true, HARD_SUCCESS)] {
+        let s = summary(rows, hard);
+        if s.success < share {
+            failures.push(format!(
+                "{}: {:.0} % within bounds < {:.0} %",
+                s.label,
+                s.success * 100.0,
+                share * 100.0
+            ));
+        }
+        let m = &s.medians;
+        if m.position > MEDIANS.position || m.size > MEDIANS.size || m.rotation > MEDIANS.rotation {
+            failures.push(format!(
+                "{}: medians {:.1} mm, {:.1} %, {:.1}° above 3 mm, 2 %, 2°",
+                s.label,
+                m.position,
+                m.size * 100.0,
+                m.rotation
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "accuracy targets missed: {}", failures.join("; "));
+}
