@@ -28,8 +28,7 @@ pub struct Row {
     pub resolution: &'static str,
     pub extent_px: f64,
     pub robust: Errors,
-    /// `None` where the paper mode was not run.
-    pub paper: Option<Errors>,
+    pub paper: Errors,
     /// The robust result's and the truth's score (the rank the search uses).
     pub score_result: f64,
     pub score_truth: f64,
@@ -50,15 +49,12 @@ fn success(e: &Errors) -> bool {
 }
 
 /// `e` as table cells: position mm, size %, rotation °.
-fn cells(e: Option<&Errors>) -> [String; 3] {
-    match e {
-        Some(e) => [
-            format!("{:.1}", e.position),
-            format!("{:.1}", e.size * 100.0),
-            format!("{:.1}", e.rotation),
-        ],
-        None => ["–".into(), "–".into(), "–".into()],
-    }
+fn cells(e: &Errors) -> [String; 3] {
+    [
+        format!("{:.1}", e.position),
+        format!("{:.1}", e.size * 100.0),
+        format!("{:.1}", e.rotation),
+    ]
 }
 
 /// The header and one line per row, as Markdown table lines.
@@ -69,8 +65,8 @@ pub fn table(rows: &[Row]) -> Vec<String> {
         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|".to_string(),
     ];
     for r in rows {
-        let [p, s, o] = cells(Some(&r.robust));
-        let [pp, ps, po] = cells(r.paper.as_ref());
+        let [p, s, o] = cells(&r.robust);
+        let [pp, ps, po] = cells(&r.paper);
         lines.push(format!(
             "| {} | {} | {} | {:.0} | {p} | {s} | {o} | {pp} | {ps} | {po} | {:.3} | {:.3} | {} | {:.1} |",
             r.name,
@@ -86,14 +82,14 @@ pub fn table(rows: &[Row]) -> Vec<String> {
     lines
 }
 
-/// One group's figures: successes, medians of the robust mode (and of the paper mode
-/// where run).
+/// One group's figures: successes and medians of the robust mode, successes of the
+/// paper mode.
 pub struct Summary {
     pub label: &'static str,
     pub count: usize,
     pub success: f64,
     pub medians: Errors,
-    pub paper_success: Option<f64>,
+    pub paper_success: f64,
 }
 
 /// The summary of the rows with `hard` as given.
@@ -101,7 +97,6 @@ pub fn summary(rows: &[Row], hard: bool) -> Summary {
     let sel: Vec<&Row> = rows.iter().filter(|r| r.hard == hard).collect();
     let share = |n: usize, of: usize| n as f64 / of.max(1) as f64;
     let of = |f: fn(&Errors) -> f64| median(sel.iter().map(|r| f(&r.robust)).collect());
-    let paper: Vec<&Errors> = sel.iter().filter_map(|r| r.paper.as_ref()).collect();
     Summary {
         label: if hard { "hard" } else { "clean" },
         count: sel.len(),
@@ -111,7 +106,7 @@ pub fn summary(rows: &[Row], hard: bool) -> Summary {
             size: of(|e| e.size),
             rotation: of(|e| e.rotation),
         },
-        paper_success: (!paper.is_empty()).then(|| share(paper.iter().filter(|e| success(e)).count(), paper.len())),
+        paper_success: share(sel.iter().filter(|r| success(&r.paper)).count(), sel.len()),
     }
 }
 
@@ -119,19 +114,16 @@ pub fn summary(rows: &[Row], hard: bool) -> Summary {
 pub fn summary_lines(rows: &[Row], seconds: f64) -> Vec<String> {
     let mut lines = Vec::new();
     for s in [summary(rows, false), summary(rows, true)] {
-        let mut line = format!(
-            "{} ({} scenes): robust {:.0} % within 10 mm, 5 %, 5°; medians {:.1} mm, {:.1} %, {:.1}°",
+        lines.push(format!(
+            "{} ({} scenes): robust {:.0} % within 10 mm, 5 %, 5°, medians {:.1} mm, {:.1} %, {:.1}°; paper {:.0} % within",
             s.label,
             s.count,
             s.success * 100.0,
             s.medians.position,
             s.medians.size * 100.0,
-            s.medians.rotation
-        );
-        if let Some(p) = s.paper_success {
-            let _ = write!(line, "; paper {:.0} % within", p * 100.0);
-        }
-        lines.push(line);
+            s.medians.rotation,
+            s.paper_success * 100.0
+        ));
     }
     let outranks = rows.iter().filter(|r| r.truth_outranks()).count();
     lines.push(format!(
