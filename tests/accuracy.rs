@@ -13,8 +13,11 @@ use crate::scenes::{self, Rendered};
 /// Position (mm), size (relative, worst of L and B) and rotation (degrees) errors.
 #[derive(Debug, Clone, Copy)]
 pub struct Errors {
+    /// Distance of the positions, mm.
     pub position: f64,
+    /// Worst relative error of L and B.
     pub size: f64,
+    /// Angle between the rotations, degrees.
     pub rotation: f64,
 }
 

@@ -35,7 +35,9 @@ const WALL_WIDTH_MM: f64 = 4000.0;
 /// A card photo and the box `[x, y, w, h]` the model is built from.
 #[derive(Debug, Clone, Copy)]
 pub struct Card {
+    /// The photo in `tests/data/photos/`.
     pub file: &'static str,
+    /// The model's box `[x, y, w, h]`, photo pixels.
     pub bbox: [i64; 4],
 }
 
@@ -51,7 +53,9 @@ impl Card {
 /// centre, `scale` times the card's size.
 #[derive(Debug, Clone, Copy)]
 pub struct Patch {
+    /// Offset of its centre from the card's, in card lengths and breadths.
     pub at: [f64; 2],
+    /// Its size relative to the card's.
     pub scale: f64,
 }
 
@@ -61,7 +65,12 @@ pub enum Texture {
     /// The photo's box, as printed.
     Same,
     /// Hue shifted (OpenCV units) and saturation scaled.
-    Recolour { hue: f64, sat: f64 },
+    Recolour {
+        /// Added hue, OpenCV units (degrees / 2).
+        hue: f64,
+        /// Saturation factor.
+        sat: f64,
+    },
     /// Gaussian blur of this sigma in photo pixels.
     Blurred(f32),
     /// The box moved and resized by `[dx, dy, dw, dh]` photo pixels.
@@ -74,7 +83,7 @@ pub enum Blur {
     None,
     /// Gaussian of this sigma, px.
     Defocus(f32),
-    /// A stroke of this length (px) along this direction.
+    /// A stroke of this length (px) along this direction `[x, y]`.
     Motion(f64, [f64; 2]),
 }
 
@@ -83,14 +92,19 @@ pub enum Blur {
 pub struct Case {
     /// Name, card, pose and size, hand-eye, noise, card brightness and occluder share.
     pub spec: Spec,
+    /// HD or FHD.
     pub resolution: Resolution,
     /// The wall photo in `tests/data/backgrounds/`.
     pub wall: &'static str,
+    /// Same-hue patches painted on the wall.
     pub patches: Vec<Patch>,
+    /// What the card shows.
     pub texture: Texture,
+    /// Blur of the rendered frame.
     pub blur: Blur,
     /// Per-channel gains `[r, g, b]` on the frame.
     pub gains: [f64; 3],
+    /// The occluder's colour (if `spec.occluder > 0`).
     pub occluder_colour: [u8; 3],
 }
 

@@ -23,11 +23,17 @@ const MEDIANS: Errors = Errors {
 /// One scene's results.
 #[derive(Debug, Clone)]
 pub struct Row {
+    /// The scene's name.
     pub name: &'static str,
+    /// A hard scene (noise, blur, light, white balance or occluder).
     pub hard: bool,
+    /// `HD` or `FHD`.
     pub resolution: &'static str,
+    /// The card's larger bounding-box side in the left image, px.
     pub extent_px: f64,
+    /// Errors of the robust mode.
     pub robust: Errors,
+    /// Errors of the paper mode.
     pub paper: Errors,
     /// The robust result's and the truth's score (the rank the search uses).
     pub score_result: f64,
@@ -85,10 +91,15 @@ pub fn table(rows: &[Row]) -> Vec<String> {
 /// One group's figures: successes and medians of the robust mode, successes of the
 /// paper mode.
 pub struct Summary {
+    /// `clean` or `hard`.
     pub label: &'static str,
+    /// Scenes in the group.
     pub count: usize,
+    /// Share of robust estimates within the success bounds.
     pub success: f64,
+    /// Robust medians of position (mm), size (relative) and rotation (°) errors.
     pub medians: Errors,
+    /// Share of paper-mode estimates within the success bounds.
     pub paper_success: f64,
 }
 
@@ -127,7 +138,7 @@ pub fn summary_lines(rows: &[Row], seconds: f64) -> Vec<String> {
     }
     let outranks = rows.iter().filter(|r| r.truth_outranks()).count();
     lines.push(format!(
-        "truth outranks the robust result on {outranks} of {} scenes (the fitness peaks at the truth, the search missed it)",
+        "truth outranks the robust result on {outranks} of {} scenes (the search missed a pose that scores higher)",
         rows.len()
     ));
     lines.push(format!("total wall time {seconds:.0} s"));
