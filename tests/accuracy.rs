@@ -12,13 +12,17 @@ use crate::scenes::{self, Rendered};
 
 /// Position (mm), size (relative, worst of L and B) and rotation (degrees) errors.
 #[derive(Debug, Clone, Copy)]
-struct Errors {
-    position: f64,
-    size: f64,
-    rotation: f64,
+pub struct Errors {
+    /// Distance of the positions, mm.
+    pub position: f64,
+    /// Worst relative error of L and B.
+    pub size: f64,
+    /// Angle between the rotations, degrees.
+    pub rotation: f64,
 }
 
-fn errors(r: &Rendered, outcome: &Outcome) -> Errors {
+/// The errors of `outcome`'s best individual against the scene's truth.
+pub fn errors(r: &Rendered, outcome: &Outcome) -> Errors {
     let best = &outcome.best;
     let truth_size = r.spec.size_mm;
     let size = best.size_mm(r.model.l_p, r.model.b_p);
@@ -29,7 +33,8 @@ fn errors(r: &Rendered, outcome: &Outcome) -> Errors {
     }
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+/// The median of `v` (NaN-free).
+pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n % 2 == 1 {
@@ -39,7 +44,9 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-fn run(r: &Rendered, mode: Mode) -> Errors {
+/// Estimates `r` with the default generations and seed in `mode`; checks the result is
+/// sound and returns its errors with the outcome.
+pub fn run(r: &Rendered, mode: Mode) -> (Errors, Outcome) {
     let mut config = r.config.clone();
     config.ga.mode = mode;
     let out = oneshot::run(
@@ -58,7 +65,7 @@ fn run(r: &Rendered, mode: Mode) -> Errors {
         "{} {mode:?}: errors {e:?}",
         r.spec.name
     );
-    e
+    (e, out)
 }
 
 /// An estimate of either mode is a pose and size inside the search space, with a finite
@@ -97,8 +104,8 @@ fn rendered_scenes_reach_the_accuracy_targets() {
     let mut rows = Vec::new();
     for (i, spec) in specs.iter().enumerate() {
         let rendered = scenes::render(spec, 100 + i as u64);
-        let robust = run(&rendered, Mode::Robust);
-        let paper = run(&rendered, Mode::Paper);
+        let (robust, _) = run(&rendered, Mode::Robust);
+        let (paper, _) = run(&rendered, Mode::Paper);
         println!(
             "{:<18} {:>5} | {:>8.1} {:>7.1} {:>7.1} | {:>8.1} {:>7.1} {:>7.1}",
             spec.name,

@@ -257,50 +257,82 @@ pub fn photo(name: &str) -> RgbImage {
     load_rgb(&data(format!("photos/{name}"))).expect("test photo")
 }
 
-/// Renders a scene at HD and builds the photo-model from the same photo and box.
-pub fn render(spec: &Spec, seed: u64) -> Rendered {
+/// How a scene is shot, beyond its [`Spec`]: the resolution, what the card shows, the
+/// wall behind it and the occluder's look.
+pub struct Stage {
+    pub resolution: Resolution,
+    /// The card's texture (the photo's box crop, or an altered copy of it).
+    pub texture: RgbImage,
+    pub background: Background,
+    pub occluder_fill: render::OccluderFill,
+}
+
+/// The card frame Σ_M in the left-camera frame.
+pub fn left_from_model(spec: &Spec) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(spec.position[0], spec.position[1], spec.position[2]),
+        rotation(spec.rotation_deg),
+    )
+}
+
+/// The built-in configuration, with the [`hand_eye`] transform if the scene asks for it.
+pub fn config(spec: &Spec) -> Config {
     let mut config = Config::load(None).expect("built-in config");
     if spec.hand_eye {
         config.left_from_hand = hand_eye();
     }
-    let rig = config.calibration.rig(Resolution::HD).expect("HD calibration");
-    let full = photo(spec.photo);
-    let [x, y, w, h] = spec.bbox;
-    let texture = image::imageops::crop_imm(&full, x as u32, y as u32, w as u32, h as u32).to_image();
+    config
+}
+
+/// The box `[x, y, w, h]` of `full`.
+pub fn crop(full: &RgbImage, [x, y, w, h]: [i64; 4]) -> RgbImage {
+    image::imageops::crop_imm(full, x as u32, y as u32, w as u32, h as u32).to_image()
+}
+
+/// The photo-model of the scene's photo and box, built as `photopose model --photo P
+/// --box x,y,w,h` builds it.
+pub fn model(spec: &Spec, config: &Config) -> PhotoModel {
+    let path = data(format!("photos/{}", spec.photo));
+    let full = load_rgb(&path).expect("test photo");
+    PhotoModel::build(&full, &path, spec.bbox, &config.model, &config.fitness.classes()).expect("model")
+}
+
+/// Renders a scene at HD in front of a collage of the other photos and builds the
+/// photo-model from the same photo and box.
+pub fn render(spec: &Spec, seed: u64) -> Rendered {
     let background_photos: Vec<RgbImage> = PHOTOS.iter().filter(|p| **p != spec.photo).map(|p| photo(p)).collect();
-    let left_from_model = Isometry3::from_parts(
-        Translation3::new(spec.position[0], spec.position[1], spec.position[2]),
-        rotation(spec.rotation_deg),
-    );
+    let stage = Stage {
+        resolution: Resolution::HD,
+        texture: crop(&photo(spec.photo), spec.bbox),
+        background: Background::collage(&background_photos, seed, 1600.0),
+        occluder_fill: render::OccluderFill::Solid([90, 110, 60]),
+    };
+    render_staged(spec, seed, stage, |_| {})
+}
+
+/// Renders `spec` as `stage` says through the example calibration (with its lens
+/// distortion), applies `post` to both eyes' images, and builds the photo-model.
+pub fn render_staged(spec: &Spec, seed: u64, stage: Stage, post: impl FnOnce(&mut StereoImages)) -> Rendered {
+    let config = config(spec);
+    let rig = config.calibration.rig(stage.resolution).expect("calibrated resolution");
+    let left_from_model = left_from_model(spec);
     let hand_from_model = config.left_from_hand.inverse() * left_from_model;
     let scene = Scene {
         card: Card {
-            texture,
+            texture: stage.texture,
             hand_from_model,
             size_mm: spec.size_mm,
         },
-        background: Background::collage(&background_photos, seed, 1600.0),
+        background: stage.background,
         noise_sigma: spec.noise,
         brightness: spec.brightness,
-        occluder: render::Occluder::covering(
-            &left_from_model,
-            spec.size_mm,
-            spec.occluder,
-            render::OccluderFill::Solid([90, 110, 60]),
-            seed,
-        ),
+        occluder: render::Occluder::covering(&left_from_model, spec.size_mm, spec.occluder, stage.occluder_fill, seed),
         seed,
     };
     let sbs = render::render(&rig, &config.left_from_hand, &scene);
-    let images = StereoImages::from_sbs(&sbs, Path::new(spec.name)).expect("even width");
-    let model = PhotoModel::build(
-        &full,
-        &data(format!("photos/{}", spec.photo)),
-        spec.bbox,
-        &config.model,
-        &config.fitness.classes(),
-    )
-    .expect("model");
+    let mut images = StereoImages::from_sbs(&sbs, Path::new(spec.name)).expect("even width");
+    post(&mut images);
+    let model = model(spec, &config);
     Rendered {
         spec: spec.clone(),
         config,

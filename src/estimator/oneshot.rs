@@ -11,7 +11,7 @@ use crate::estimator::ga::{self, Bounds, Outcome, Problem};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::Mode;
-use crate::estimator::verify::texture::{self, Texture};
+use crate::estimator::verify::texture;
 use crate::estimator::verify::{BrightnessPyramid, TextureTerm, Verdict};
 use crate::vision::frame::StereoImages;
 use crate::vision::lookup::LevelLookup;
@@ -233,15 +233,16 @@ pub fn table(model: &PhotoModel, outcome: &Outcome) -> String {
     s
 }
 
-/// The robust ranking's view of `pose` on `images`: its fitness at full resolution
-/// (with the texture terms in `score`) and its texture terms on every point.
+/// The fitness of `pose` on `images` at full resolution, evaluated on the same problem
+/// [`run`] searches (so its `score` ranks against an outcome's): e.g. the ground truth's
+/// score, to tell a search that missed the peak from a fitness whose peak is elsewhere.
 pub fn score_at(
     model: &PhotoModel,
     images: &StereoImages,
     config: &Config,
     pose: &PoseSize,
-) -> Result<(Fitness, Texture), CalibrationError> {
+) -> Result<Fitness, CalibrationError> {
     let prepared = Prepared::new(model, images, config)?;
-    let fit = prepared.problem(config).evaluate(0, &prepared.bounds.encode(pose));
-    Ok((fit, prepared.verdict(pose).texture))
+    let problem = prepared.problem(config);
+    Ok(problem.evaluate(0, &problem.bounds.encode(pose)))
 }

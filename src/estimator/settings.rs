@@ -248,7 +248,7 @@ impl Default for RobustSettings {
     fn default() -> Self {
         Self {
             pyramid_levels: 3,
-            level_share: vec![0.5, 0.25, 0.25],
+            level_share: vec![0.6, 0.3, 0.1],
             restarts: 4,
             prior_samples: 20,
             immigrants: 0.1,

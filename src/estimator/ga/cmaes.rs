@@ -10,7 +10,7 @@ use rand::Rng;
 use super::{normal, Genes, Problem, GENES};
 use crate::estimator::fitness::Fitness;
 
-/// Minimises nothing and maximises `Fitness::score` of `problem` on `level` from
+/// Maximises `Fitness::score` of `problem` on `level` from
 /// `start` with initial step `sigma` (normalised genes) for about `budget`
 /// evaluations; returns the best seen and its fitness.
 pub fn maximise(
@@ -24,7 +24,9 @@ pub fn maximise(
     let n = GENES as f64;
     let lambda = 4 + (3.0 * n.ln()).floor() as usize;
     let mu = lambda / 2;
-    let raw: Vec<f64> = (0..mu).map(|i| ((mu as f64 + 0.5).ln() - ((i + 1) as f64).ln())).collect();
+    let raw: Vec<f64> = (0..mu)
+        .map(|i| (mu as f64 + 0.5).ln() - ((i + 1) as f64).ln())
+        .collect();
     let sum: f64 = raw.iter().sum();
     let w: Vec<f64> = raw.iter().map(|v| v / sum).collect();
     let mueff = 1.0 / w.iter().map(|v| v * v).sum::<f64>();
@@ -71,7 +73,8 @@ pub fn maximise(
         mean += &yw * sigma;
         let inv_sqrt = &b * DMatrix::from_diagonal(&d.map(|v| 1.0 / v)) * b.transpose();
         ps = &ps * (1.0 - cs) + &inv_sqrt * &yw * (cs * (2.0 - cs) * mueff).sqrt();
-        let hsig = ps.norm() / (1.0 - (1.0 - cs).powi(2 * (used / lambda) as i32)).sqrt() / chi_n < 1.4 + 2.0 / (n + 1.0);
+        let hsig =
+            ps.norm() / (1.0 - (1.0 - cs).powi(2 * (used / lambda) as i32)).sqrt() / chi_n < 1.4 + 2.0 / (n + 1.0);
         pc = &pc * (1.0 - cc) + &yw * (if hsig { (cc * (2.0 - cc) * mueff).sqrt() } else { 0.0 });
         let rank_mu: DMatrix<f64> = ys.iter().zip(&w).map(|(v, wi)| v * v.transpose() * *wi).sum();
         c = &c * (1.0 - c1 - cmu) + (&pc * pc.transpose()) * c1 + rank_mu * cmu;

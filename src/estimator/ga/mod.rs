@@ -162,8 +162,7 @@ impl<'a> Problem<'a> {
         let mut f = self.scorer.evaluate(&self.points[l], &self.levels[l], &c);
         if let Some(t) = self.texture.as_ref().filter(|t| l < t.below_level) {
             if f != Fitness::default() {
-                let tl = l.max(std::env::var("TEXL").ok().and_then(|v| v.parse().ok()).unwrap_or(0)).min(self.levels.len() - 1);
-                f.score += t.weight * self.texture_at(tl, &t.points[tl], &c).sum();
+                f.score += t.weight * self.texture_at(l, &t.points[l], &c).sum();
             }
         }
         f

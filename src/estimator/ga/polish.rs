@@ -42,7 +42,10 @@ pub fn tilt_about(p: &PoseSize, left_from_hand: &Isometry3<f64>, axis: Vector3<f
     let stretch = 1.0 / tilt.cos().abs().max(0.2) - 1.0;
     let turn = UnitQuaternion::from_scaled_axis(axis * tilt);
     let hand = left_from_hand.inverse() * Isometry3::from_parts(left.translation, turn * left.rotation);
-    let (fl, fb) = (1.0 + stretch * mx.dot(&across).powi(2), 1.0 + stretch * my.dot(&across).powi(2));
+    let (fl, fb) = (
+        1.0 + stretch * mx.dot(&across).powi(2),
+        1.0 + stretch * my.dot(&across).powi(2),
+    );
     let mut q = PoseSize::from_pose(&hand, [1.0, 1.0], 1.0, 1.0);
     q.alpha = p.alpha / fl;
     q.k = p.k * fl / fb;
@@ -79,22 +82,16 @@ pub fn best(
         let mut fit = vec![Fitness::default(); variants.len()];
         problem.evaluate_batch(level, &variants, &mut fit);
         let start = variants[best_index(&fit, Ties::First)];
-        if std::env::var("CMA").is_ok() {
-            let (g, _) = super::cmaes::maximise(problem, level, start, 0.03, evaluations, rng);
-            let (g, f) = super::cmaes::maximise(problem, 0, g, 0.01, evaluations, rng);
-            results.push((g, f, 0));
-            continue;
-        }
-        let (g, _, _) = refine(problem, level, start, evaluations, 3.0 * SIGMA, rng);
-        results.push(refine(problem, 0, g, evaluations, SIGMA, rng));
+        let (g, _) = super::cmaes::maximise(problem, level, start, 3.0 * SIGMA, evaluations, rng);
+        results.push(super::cmaes::maximise(problem, 0, g, SIGMA, evaluations, rng));
     }
     let fits: Vec<Fitness> = results.iter().map(|r| r.1).collect();
-    let (g, f, _) = results[best_index(&fits, Ties::First)];
-    (g, f)
+    results[best_index(&fits, Ties::First)]
 }
 
-/// Mutation step (normalised gene units) of the polish at full resolution.
-const SIGMA: f64 = 0.006;
+/// Initial step (normalised gene units) of the polish at full resolution; three times
+/// this on the coarser level.
+const SIGMA: f64 = 0.01;
 
 /// (1+λ) evolution strategy on `level` from `start` with a success-based step size
 /// (from `sigma`); returns the best, its fitness and the evaluations used.

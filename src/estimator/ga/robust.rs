@@ -17,7 +17,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// Distinct scan regions polished at the end, and evaluations per polish and level.
 const HYPOTHESES: usize = 8;
-const POLISH: usize = 200;
+const POLISH: usize = 400;
 
 /// Mutation step (normalised gene units) at the start of full-resolution generations;
 /// each coarser level multiplies it by 3.
@@ -273,7 +273,7 @@ impl<'p, 'a> Search<'p, 'a> {
             None
         };
         if let Some(s) = &scanned {
-            self.hypotheses = super::polish::distinct(problem, s, std::env::var("HYP").ok().and_then(|v| v.parse().ok()).unwrap_or(HYPOTHESES), 40.0);
+            self.hypotheses = super::polish::distinct(problem, s, HYPOTHESES, 40.0);
         }
         tracing::debug!("acquisition scan: {:.0} ms", ms(start));
         let start = Instant::now();
@@ -378,7 +378,7 @@ impl<'p, 'a> Search<'p, 'a> {
         let mut hypotheses = vec![self.best()];
         hypotheses.extend(self.hypotheses.iter().copied());
         let hypotheses = super::polish::distinct(self.problem, &hypotheses, HYPOTHESES + 1, 20.0);
-        let (best, _) = super::polish::best(self.problem, &hypotheses, 1.min(self.levels - 1), std::env::var("POLISH").ok().and_then(|v| v.parse().ok()).unwrap_or(POLISH), rng);
+        let (best, _) = super::polish::best(self.problem, &hypotheses, 1.min(self.levels - 1), POLISH, rng);
         tracing::debug!("{} hypotheses polished in {:.0} ms", hypotheses.len(), ms(start));
         let start = Instant::now();
         let (best, fitness, used) = refine(self.problem, best, self.robust.refine_evaluations, rng);

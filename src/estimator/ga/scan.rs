@@ -21,9 +21,9 @@ const ROLLS: usize = 8;
 /// The first pass scores every placement with one point in `SPARSE`; the `RESCORE` best
 /// are then scored with every point.
 const SPARSE: usize = 4;
-const RESCORE: usize = 4096;
+const RESCORE: usize = 32768;
 /// Distinct placements kept for the depth scan, and depths tried for each.
-const KEEP: usize = 48;
+const KEEP: usize = 96;
 const DEPTHS: usize = 40;
 
 /// A placement of the model facing the left camera.
@@ -171,7 +171,7 @@ impl<'p, 'a> Scan<'p, 'a> {
                 .evaluate_left(&sparse, self.level, &self.candidate(pl, self.z_ref))
         });
         let mut order: Vec<usize> = (0..placements.len()).collect();
-        let promising = std::env::var("RESCORE").ok().and_then(|v| v.parse().ok()).unwrap_or(RESCORE).min(order.len());
+        let promising = RESCORE.min(order.len());
         if promising < order.len() {
             order.select_nth_unstable_by(promising, |&a, &b| rough[b].total_cmp(&rough[a]));
             order.truncate(promising);
@@ -223,7 +223,7 @@ fn distinct(placements: &[Placement], order: &[usize]) -> Vec<Placement> {
         });
         if !near {
             kept.push(p);
-            if kept.len() == std::env::var("KEEP").ok().and_then(|v| v.parse().ok()).unwrap_or(KEEP) {
+            if kept.len() == KEEP {
                 break;
             }
         }

@@ -114,7 +114,10 @@ pub fn perturbations(p: &PoseSize, left_from_hand: &Isometry3<f64>) -> Vec<PoseS
         let rolled = UnitQuaternion::from_scaled_axis(sight * sign * turn) * left.rotation;
         let hand = left_from_hand.inverse() * Isometry3::from_parts(left.translation, rolled);
         out.push(PoseSize::from_pose(&hand, [1.0, 1.0], 1.0, 1.0).with_size_of(p));
-        out.push(PoseSize { alpha: p.alpha * (1.0 + 0.08 * sign), ..*p });
+        out.push(PoseSize {
+            alpha: p.alpha * (1.0 + 0.08 * sign),
+            ..*p
+        });
         let moved = Isometry3::from_parts((left.translation.vector + sight * 15.0 * sign).into(), left.rotation);
         out.push(PoseSize::from_pose(&(left_from_hand.inverse() * moved), [1.0, 1.0], 1.0, 1.0).with_size_of(p));
     }

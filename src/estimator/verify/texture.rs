@@ -33,7 +33,10 @@ impl Brightness {
     /// The HSV value of every pixel of `img`, and its detail.
     pub fn of(img: &RgbImage) -> Self {
         let (width, height) = (img.width() as usize, img.height() as usize);
-        let px: Vec<f32> = img.pixels().map(|p| p.0.into_iter().max().unwrap_or(0) as f32).collect();
+        let px: Vec<f32> = img
+            .pixels()
+            .map(|p| p.0.into_iter().max().unwrap_or(0) as f32)
+            .collect();
         let mean = box_mean(&px, width, height, DETAIL_RADIUS);
         let detail: Vec<f32> = px.iter().zip(&mean).map(|(a, m)| a - m).collect();
         let noise_var = noise_variance(&detail, width, height);
