@@ -1,7 +1,7 @@
 //! Several hypotheses, each polished: the scan's best distinct placements and the GA's
 //! result are each tried at a range of tilts (the scan places the model facing the
-//! camera) and refined by a (1+λ) evolution strategy on the finer levels, where the
-//! texture terms rank candidates. The best polished hypothesis wins. A search that
+//! camera) and refined by a CMA-ES ([`super::cmaes`]) on the half and the full
+//! resolution, where the texture terms rank candidates. The best polished hypothesis wins. A search that
 //! followed one population could settle on a same-coloured region while the target
 //! sat elsewhere in the frame; this way each plausible region gets its own refinement.
 
