@@ -335,8 +335,7 @@ fn estimate(case: &Case, r: &Rendered) -> report::Row {
         score_result: outcome.fitness.score,
         score_truth: truth.score,
         seconds,
-        found: outcome.verdict.found,
-        confidence: outcome.verdict.confidence,
+        verdict: outcome.verdict,
     }
 }
 

@@ -8,6 +8,7 @@ mod accuracy;
 mod cli;
 mod common;
 mod detect;
+mod generalisation;
 mod robustness;
 mod scenes;
 mod suite;

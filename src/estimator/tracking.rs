@@ -70,6 +70,8 @@ pub struct Tracker {
     last_best: Option<Genes>,
     velocity: Genes,
     frames: u64,
+    /// The last acquisition's pose was judged not found: acquire afresh.
+    rejected: bool,
 }
 
 impl Tracker {
@@ -88,12 +90,19 @@ impl Tracker {
             last_best: None,
             velocity: [0.0; GENES],
             frames: 0,
+            rejected: false,
         }
+    }
+
+    /// The verdict on the last acquisition was "not found": the next frame is acquired
+    /// afresh, and nothing is tracked from this pose.
+    pub fn reject_acquisition(&mut self) {
+        self.rejected = true;
     }
 
     /// True until the first acquisition, and after the object was lost.
     pub fn needs_acquisition(&self) -> bool {
-        self.pop.is_empty() || self.searching > self.settings.lost_after_frames
+        self.rejected || self.pop.is_empty() || self.searching > self.settings.lost_after_frames
     }
 
     /// The genes expected on the next frame (last best moved by the estimated velocity);
@@ -167,6 +176,7 @@ impl Tracker {
         let best = problem.bounds.encode(&outcome.best);
         let (n, sigma) = (self.settings.population, self.settings.sigma);
         self.pop.seed_around(problem, best, n, sigma, &mut self.rng);
+        self.rejected = false;
         self.searching = 0;
         self.last_best = None;
         self.velocity = [0.0; GENES];
@@ -348,7 +358,15 @@ impl StreamTracker {
                 let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
                 self.tracker.step(&problem)
             }
-            Ready::Acquire(prepared) => self.tracker.step(&prepared.problem(&self.config)),
+            Ready::Acquire(prepared) => {
+                let mut estimate = self.tracker.step(&prepared.problem(&self.config));
+                // The one-shot verdict: a pose it does not call found is not tracked.
+                if !prepared.verdict(&estimate.best).found {
+                    estimate.state = TrackState::Searching;
+                    self.tracker.reject_acquisition();
+                }
+                estimate
+            }
         })
     }
 

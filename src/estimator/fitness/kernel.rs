@@ -60,7 +60,7 @@ pub fn projection(cam: &Intrinsics, origin: (usize, usize), [ax, ay, t]: [&Vecto
 /// Padded-image coordinates of a model point, `(0, 0)` (the outside ring) behind the
 /// camera.
 #[inline(always)]
-fn pixel(p: &Projection, x: f32, y: f32) -> (f32, f32) {
+pub(super) fn pixel(p: &Projection, x: f32, y: f32) -> (f32, f32) {
     let (m, [k1, k2, p1, p2, k3]) = (&p.m, p.k);
     let z = m[6] * x + m[7] * y + m[8];
     let inv = 1.0 / z;

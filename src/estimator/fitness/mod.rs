@@ -329,6 +329,29 @@ impl Scorer {
     }
 }
 
+/// Where model points (photo pixels) land in one camera's image for one candidate, in
+/// `f32` like the fitness kernel (pose, pinhole, distortion): for other per-point terms.
+pub struct PointProjector(Projection);
+
+impl PointProjector {
+    /// The projector of candidate `c` through `cam`, which sees the model at
+    /// `cam_from_model`.
+    pub fn new(cam: &Intrinsics, cam_from_model: &Isometry3<f64>, c: &PoseSize) -> Self {
+        let r: Matrix3<f64> = cam_from_model.rotation.to_rotation_matrix().into_inner();
+        let (ax, ay) = (r.column(0) / c.alpha, r.column(1) / c.beta());
+        let t = cam_from_model.translation.vector;
+        Self(kernel::projection(cam, (0, 0), [&ax, &ay, &t]))
+    }
+
+    /// Image pixel of model point `(x, y)`; `(-1, -1)` behind the camera.
+    #[inline]
+    pub fn pixel(&self, x: f32, y: f32) -> (f32, f32) {
+        let (u, v) = kernel::pixel(&self.0, x, y);
+        // The kernel's coordinates are those of a lookup image padded by one texel.
+        (u - 1.0, v - 1.0)
+    }
+}
+
 /// Pixel positions of a model's points in one image.
 #[derive(Debug, Clone)]
 pub struct ProjectedPoints {

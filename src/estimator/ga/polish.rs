@@ -12,17 +12,21 @@ use super::{best_index, normal, Genes, Problem, Ties, GENES};
 use crate::estimator::fitness::Fitness;
 use crate::estimator::pose::PoseSize;
 
-/// Tilts tried per hypothesis (degrees), each about 8 axes in the image plane.
+/// Variants tried per hypothesis: rolls (degrees), sizes (factors of the length), and
+/// tilts (degrees) about 8 axes in the image plane.
+const ROLLS_DEG: [f64; 3] = [-15.0, 0.0, 15.0];
+const SCALES: [f64; 5] = [0.8, 0.9, 1.0, 1.1, 1.25];
 const TILTS_DEG: [f64; 3] = [15.0, 30.0, 45.0];
 const TILT_AXES: usize = 8;
 
-/// Up to `n` of `candidates` (best first) whose positions are at least `apart_mm`
-/// from each other's.
+/// Up to `n` of `candidates` (best first) that differ from each other's by at least
+/// `apart_mm` in position or 15 % in length.
 pub fn distinct(problem: &Problem, candidates: &[Genes], n: usize, apart_mm: f64) -> Vec<Genes> {
-    let mut kept: Vec<(Genes, Vector3<f64>)> = Vec::with_capacity(n);
+    let mut kept: Vec<(Genes, PoseSize)> = Vec::with_capacity(n);
     for g in candidates {
-        let p = problem.bounds.decode(g).position;
-        if kept.iter().all(|(_, q)| (p - q).norm() >= apart_mm) {
+        let p = problem.bounds.decode(g);
+        let near = |q: &PoseSize| (p.position - q.position).norm() < apart_mm && (p.alpha / q.alpha).ln().abs() < 0.15;
+        if !kept.iter().any(|(_, q)| near(q)) {
             kept.push((*g, p));
             if kept.len() == n {
                 break;
@@ -52,22 +56,42 @@ pub fn tilt_about(p: &PoseSize, left_from_hand: &Isometry3<f64>, axis: Vector3<f
     q
 }
 
-/// `g` and its tilted variants ([`tilt_about`] axes in the image plane).
-fn tilted(problem: &Problem, g: &Genes) -> Vec<Genes> {
+/// `g` and its variants: rolled, resized and tilted ([`tilt_about`] axes in the image
+/// plane). The scan places the model facing the camera on a coarse grid of sizes and
+/// rolls; each variant starts the polish nearer one of the true poses it may stand for.
+fn variants(problem: &Problem, g: &Genes) -> Vec<Genes> {
     let p = problem.bounds.decode(g);
-    let mut out = vec![*g];
-    for tilt in TILTS_DEG {
-        for a in 0..TILT_AXES {
-            let angle = std::f64::consts::TAU * a as f64 / TILT_AXES as f64;
-            let axis = Vector3::new(angle.cos(), angle.sin(), 0.0);
-            let q = tilt_about(&p, &problem.scorer.left_from_hand, axis, tilt.to_radians());
-            out.push(problem.bounds.encode(&q));
+    let left_from_hand = &problem.scorer.left_from_hand;
+    let left = left_from_hand * p.hand_from_model();
+    let sight = left.translation.vector.normalize();
+    let mut out = Vec::new();
+    for roll in ROLLS_DEG {
+        let turned = UnitQuaternion::from_scaled_axis(sight * roll.to_radians()) * left.rotation;
+        let hand = left_from_hand.inverse() * Isometry3::from_parts(left.translation, turned);
+        let rolled = PoseSize::from_pose(&hand, [1.0, 1.0], 1.0, 1.0).with_size_of(&p);
+        for scale in SCALES {
+            let sized = PoseSize {
+                alpha: rolled.alpha / scale,
+                ..rolled
+            };
+            out.push(problem.bounds.encode(&sized));
+            for tilt in TILTS_DEG {
+                for a in 0..TILT_AXES {
+                    let angle = std::f64::consts::TAU * a as f64 / TILT_AXES as f64;
+                    let axis = Vector3::new(angle.cos(), angle.sin(), 0.0);
+                    out.push(
+                        problem
+                            .bounds
+                            .encode(&tilt_about(&sized, left_from_hand, axis, tilt.to_radians())),
+                    );
+                }
+            }
         }
     }
     out
 }
 
-/// The best of `hypotheses` after each is tried at the [`tilted`] variants on `level`
+/// The best of `hypotheses` after each is tried at its [`variants`] on `level`
 /// and refined there and on level 0, `evaluations` each per level.
 pub fn best(
     problem: &Problem,
@@ -78,16 +102,54 @@ pub fn best(
 ) -> (Genes, Fitness) {
     let mut results = Vec::with_capacity(hypotheses.len());
     for h in hypotheses {
-        let variants = tilted(problem, h);
-        let mut fit = vec![Fitness::default(); variants.len()];
-        problem.evaluate_batch(level, &variants, &mut fit);
-        let start = variants[best_index(&fit, Ties::First)];
+        let start = best_of(problem, level, variants(problem, h));
+        let start = best_of(problem, level, edge_variants(problem, &start));
         let (g, _) = super::cmaes::maximise(problem, level, start, 3.0 * SIGMA, evaluations, rng);
-        results.push(super::cmaes::maximise(problem, 0, g, SIGMA, evaluations, rng));
+        let (g, _) = super::cmaes::maximise(problem, 0, g, SIGMA, evaluations, rng);
+        let g = best_of(problem, 0, edge_variants(problem, &g));
+        results.push(super::cmaes::maximise(problem, 0, g, SIGMA / 2.0, evaluations / 2, rng));
     }
     let fits: Vec<Fitness> = results.iter().map(|r| r.1).collect();
     results[best_index(&fits, Ties::First)]
 }
+
+/// The best of `candidates` on `level` (the first of equals).
+fn best_of(problem: &Problem, level: usize, candidates: Vec<Genes>) -> Genes {
+    let mut fit = vec![Fitness::default(); candidates.len()];
+    problem.evaluate_batch(level, &candidates, &mut fit);
+    candidates[best_index(&fit, Ties::First)]
+}
+
+/// `g` and its one-sided resizes: the length or the width grown or shrunk by
+/// [`EDGE_FACTORS`] about its centre, or while one of the two edges across it stays
+/// put (an error of the aspect the scan cannot see, facing). A model that covers
+/// only part of its target, one edge on the target's edge and the other inside, scores
+/// a local peak that a mutation of one gene leaves only by chance.
+fn edge_variants(problem: &Problem, g: &Genes) -> Vec<Genes> {
+    let p = problem.bounds.decode(g);
+    let [l_p, b_p] = problem.scorer.box_px;
+    let size = p.size_mm(l_p, b_p);
+    let mut out = vec![*g];
+    for (axis, extent) in [(Vector3::x(), size[0]), (Vector3::y(), size[1])] {
+        for factor in EDGE_FACTORS {
+            for side in [-0.5, 0.0, 0.5] {
+                let mut q = p;
+                if axis == Vector3::x() {
+                    q.alpha /= factor;
+                    q.k *= factor;
+                } else {
+                    q.k /= factor;
+                }
+                q.position += p.rotation() * axis * (side * (factor - 1.0) * extent);
+                out.push(problem.bounds.encode(&q));
+            }
+        }
+    }
+    out
+}
+
+/// Length or width factors of [`edge_variants`].
+const EDGE_FACTORS: [f64; 4] = [0.8, 0.9, 1.12, 1.25];
 
 /// Initial step (normalised gene units) of the polish at full resolution; three times
 /// this on the coarser level.

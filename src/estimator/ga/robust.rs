@@ -15,7 +15,8 @@ use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::{GaSettings, RobustSettings};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
-/// Distinct scan regions polished at the end, and evaluations per polish and level.
+/// Distinct scan regions polished at the end, and evaluations per polish and level in
+/// a search of 1000 generations.
 const HYPOTHESES: usize = 8;
 const POLISH: usize = 400;
 
@@ -268,13 +269,12 @@ impl<'p, 'a> Search<'p, 'a> {
         let (problem, n) = (self.problem, self.ga.population);
         let start = Instant::now();
         let mut scanned = if self.levels > 1 {
-            Some(super::scan::seeds(problem, n)).filter(|s| !s.is_empty())
+            let scan = super::scan::seeds(problem, n);
+            self.hypotheses = super::polish::distinct(problem, &scan.regions, HYPOTHESES, 40.0);
+            Some(scan.seeds).filter(|s| !s.is_empty())
         } else {
             None
         };
-        if let Some(s) = &scanned {
-            self.hypotheses = super::polish::distinct(problem, s, HYPOTHESES, 40.0);
-        }
         tracing::debug!("acquisition scan: {:.0} ms", ms(start));
         let start = Instant::now();
         let oversample = self.robust.prior_samples;
@@ -372,13 +372,26 @@ impl<'p, 'a> Search<'p, 'a> {
         p.genes[best_index(&p.fit, Ties::First)]
     }
 
+    /// Evaluations per hypothesis and level of the polish: [`POLISH`] for a search of
+    /// 1000 generations, in proportion for shorter ones (a tracker's re-acquisition),
+    /// and at least 100.
+    fn polish_budget(&self) -> usize {
+        (POLISH * self.generations / 1000).max(100)
+    }
+
     /// Refines the best individual at full resolution ([`refine`]) and reports.
     fn finish(mut self, rng: &mut impl Rng) -> Outcome {
         let start = Instant::now();
         let mut hypotheses = vec![self.best()];
         hypotheses.extend(self.hypotheses.iter().copied());
         let hypotheses = super::polish::distinct(self.problem, &hypotheses, HYPOTHESES + 1, 20.0);
-        let (best, _) = super::polish::best(self.problem, &hypotheses, 1.min(self.levels - 1), POLISH, rng);
+        let (best, _) = super::polish::best(
+            self.problem,
+            &hypotheses,
+            1.min(self.levels - 1),
+            self.polish_budget(),
+            rng,
+        );
         tracing::debug!("{} hypotheses polished in {:.0} ms", hypotheses.len(), ms(start));
         let start = Instant::now();
         let (best, fitness, used) = refine(self.problem, best, self.robust.refine_evaluations, rng);

@@ -54,8 +54,16 @@ impl Placement {
     }
 }
 
-/// Up to `n` seeds, best first, from the scan of the coarsest level.
-pub fn seeds(problem: &Problem, n: usize) -> Vec<Genes> {
+/// What the scan found: seeds for a population, and the regions it saw.
+pub struct Scanned {
+    /// Up to `n` candidates, best first (several may share a placement).
+    pub seeds: Vec<Genes>,
+    /// Each distinct placement at its best depth, best first.
+    pub regions: Vec<Genes>,
+}
+
+/// The scan of the coarsest level: up to `n` seeds and every distinct region.
+pub fn seeds(problem: &Problem, n: usize) -> Scanned {
     let scan = Scan::new(problem);
     let placements = scan.placements();
     let order = scan.best_placements(&placements);
@@ -190,7 +198,7 @@ impl<'p, 'a> Scan<'p, 'a> {
 
     /// The `n` best candidates of a scan along each placement's line of sight over the
     /// depth range, scored on both images.
-    fn depth_scan(&self, kept: &[Placement], n: usize) -> Vec<Genes> {
+    fn depth_scan(&self, kept: &[Placement], n: usize) -> Scanned {
         let (problem, b) = (self.problem, &self.problem.bounds);
         let depths: Vec<f64> = (0..DEPTHS)
             .map(|i| b.lo[2] * (b.hi[2] / b.lo[2]).powf(i as f64 / (DEPTHS - 1) as f64))
@@ -198,16 +206,23 @@ impl<'p, 'a> Scan<'p, 'a> {
         let trials: Vec<(Placement, f64)> = kept.iter().flat_map(|p| depths.iter().map(move |&z| (*p, z))).collect();
         let mut fits = vec![0.0; trials.len()];
         problem.par_fill(&trials, &mut fits, |(pl, z)| self.stereo_score(&self.candidate(pl, *z)));
+        let encode = |i: usize| {
+            let (pl, z) = trials[i];
+            b.encode(&self.candidate(&pl, z))
+        };
         let mut order: Vec<usize> = (0..trials.len()).collect();
         order.sort_by(|&a, &b| fits[b].total_cmp(&fits[a]));
-        order
-            .into_iter()
-            .take(n)
-            .map(|i| {
-                let (pl, z) = trials[i];
-                b.encode(&self.candidate(&pl, z))
-            })
-            .collect()
+        // The best depth of each placement: the first of its trials in `order`.
+        let mut seen = vec![false; kept.len()];
+        let regions = order
+            .iter()
+            .filter(|&&i| !std::mem::replace(&mut seen[i / DEPTHS], true))
+            .map(|&i| encode(i))
+            .collect();
+        Scanned {
+            seeds: order.into_iter().take(n).map(encode).collect(),
+            regions,
+        }
     }
 }
 

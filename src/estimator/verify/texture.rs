@@ -7,10 +7,10 @@
 //! correlations, so a change of brightness or contrast leaves them unchanged.
 
 use image::RgbImage;
-use nalgebra::{Isometry3, Point3};
+use nalgebra::Isometry3;
 
 use crate::camera::{Intrinsics, StereoRig};
-use crate::estimator::fitness::PointSet;
+use crate::estimator::fitness::{PointProjector, PointSet};
 use crate::estimator::pose::PoseSize;
 
 /// One eye's brightness (HSV value, the maximum of R, G and B), row-major, and its
@@ -52,7 +52,7 @@ impl Brightness {
     /// Bilinear samples of the brightness and the detail at pixel `(u, v)`, and the
     /// variance of the noise in that detail sample; `None` outside the image.
     #[inline]
-    fn sample(&self, u: f64, v: f64) -> Option<(f32, f32, f32)> {
+    fn sample(&self, u: f32, v: f32) -> Option<(f32, f32, f32)> {
         if !(u >= 0.0 && v >= 0.0) {
             return None;
         }
@@ -60,7 +60,7 @@ impl Brightness {
         if x0 + 1 >= self.width || y0 + 1 >= self.height {
             return None;
         }
-        let (fx, fy) = ((u - x0 as f64) as f32, (v - y0 as f64) as f32);
+        let (fx, fy) = (u - x0 as f32, v - y0 as f32);
         let i = y0 * self.width + x0;
         let w = self.width;
         let at = |p: &[f32]| {
@@ -187,30 +187,9 @@ impl Ncc {
     }
 }
 
-/// The model's inner points in the left camera's frame for candidate `c`.
-fn left_points<'a>(
-    points: &'a PointSet,
-    left_from_hand: &Isometry3<f64>,
-    c: &PoseSize,
-) -> impl Iterator<Item = (Point3<f64>, f32)> + 'a {
-    let left_from_model = left_from_hand * c.hand_from_model();
-    let (ia, ib) = (1.0 / c.alpha, 1.0 / c.beta());
-    points
-        .inner_x
-        .iter()
-        .zip(&points.inner_y)
-        .zip(&points.inner_v)
-        .map(move |((&x, &y), &v)| {
-            (
-                left_from_model * Point3::new(x as f64 * ia, y as f64 * ib, 0.0),
-                v as f32,
-            )
-        })
-}
-
-/// Both texture terms of candidate `c` (stereo on the detail, structure on the
-/// brightness itself) (hand frame; `left_from_hand` the hand–eye
-/// transform) on images `[left, right]` seen through `rig`.
+/// Both texture terms of candidate `c` (hand frame; `left_from_hand` the hand–eye
+/// transform) on images `[left, right]` seen through `rig`: stereo on the detail (with
+/// `denoised`, corrected for the images' noise), structure on the brightness itself.
 pub fn score(
     points: &PointSet,
     rig: &StereoRig,
@@ -219,19 +198,20 @@ pub fn score(
     c: &PoseSize,
     denoised: bool,
 ) -> Texture {
+    let left_from_model = left_from_hand * c.hand_from_model();
+    let left = PointProjector::new(&rig.left, &left_from_model, c);
+    let right = PointProjector::new(&rig.right, &(rig.right_from_left * left_from_model), c);
     let (mut stereo, mut model_left, mut model_right) = (Ncc::default(), Ncc::default(), Ncc::default());
-    for (p, m) in left_points(points, left_from_hand, c) {
-        let (Some(l), Some(r)) = rig.project_both(&p) else {
-            continue;
-        };
-        let (Some((a, da, na)), Some((b, db, nb))) = (eyes[0].sample(l.x, l.y), eyes[1].sample(r.x, r.y)) else {
+    for ((&x, &y), &m) in points.inner_x.iter().zip(&points.inner_y).zip(&points.inner_v) {
+        let ((ul, vl), (ur, vr)) = (left.pixel(x, y), right.pixel(x, y));
+        let (Some((a, da, na)), Some((b, db, nb))) = (eyes[0].sample(ul, vl), eyes[1].sample(ur, vr)) else {
             continue;
         };
         stereo.add(da, db);
         stereo.noise_a += na as f64;
         stereo.noise_b += nb as f64;
-        model_left.add(m, a);
-        model_right.add(m, b);
+        model_left.add(m as f32, a);
+        model_right.add(m as f32, b);
     }
     let seen = stereo.n / points.inner_v.len().max(1) as f64;
     Texture {
@@ -248,10 +228,12 @@ pub fn structure_in(
     left_from_hand: &Isometry3<f64>,
     c: &PoseSize,
 ) -> f64 {
+    let project = PointProjector::new(cam, &(left_from_hand * c.hand_from_model()), c);
     let mut ncc = Ncc::default();
-    for (p, m) in left_points(points, left_from_hand, c) {
-        if let Some((a, _, _)) = cam.project(&p).and_then(|l| eye.sample(l.x, l.y)) {
-            ncc.add(m, a);
+    for ((&x, &y), &m) in points.inner_x.iter().zip(&points.inner_y).zip(&points.inner_v) {
+        let (u, v) = project.pixel(x, y);
+        if let Some((a, _, _)) = eye.sample(u, v) {
+            ncc.add(m as f32, a);
         }
     }
     ncc.value() * ncc.n / points.inner_v.len().max(1) as f64

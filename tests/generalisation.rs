@@ -1,0 +1,215 @@
+//! Scenes nobody tuned for: 40 random scenes, each a card of one test photo in front of
+//! a *different* real photograph as the background wall (no collage), anywhere in the
+//! field of view inside the default search space, tilted up to 45°, HD and FHD (small
+//! cards), a third of them noisy, one random hand-eye transform each, estimated with
+//! the default configuration. The table and the figures print with `--nocapture`.
+//!
+//! Beside the accuracy suite's hand-made scenes, these are drawn at random: a second
+//! check of the verdict on poses nobody chose. Asserted: no pose more than 20 mm or 10°
+//! off is reported found, and the share within 10 mm, 5 % and 5° stays at or above its
+//! floor (a guard against regressions; the targets are printed and not reached yet).
+
+use std::path::Path;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use photopose::camera::calibration::Resolution;
+use photopose::config::Config;
+use photopose::estimator::model::PhotoModel;
+use photopose::estimator::oneshot;
+use photopose::estimator::pose::{rotation_error_deg, PoseSize};
+use photopose::render::{self, Background, Card, Scene};
+use photopose::vision::frame::StereoImages;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use crate::common::data;
+use crate::scenes::photo;
+
+/// The photos and their boxes (as `photopose model --box`).
+const CARDS: [(&str, [i64; 4]); 4] = [
+    ("coffee.jpg", [149, 22, 279, 289]),
+    ("chelsea.jpg", [70, 20, 280, 270]),
+    ("astronaut.jpg", [120, 20, 270, 330]),
+    ("rocket.jpg", [150, 60, 340, 300]),
+];
+
+/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-11-30: 24 of 40; the
+/// floor is 4 scenes below (a guard against regressions, not the target).
+const SUCCESS_FLOOR: f64 = 0.5;
+
+/// One random scene's parameters and its rendering.
+struct Drawn {
+    name: String,
+    fhd: bool,
+    noise: f64,
+    tilt_deg: f64,
+    extent_px: f64,
+    size_mm: [f64; 2],
+    hand_from_model: Isometry3<f64>,
+    config: Config,
+    model: PhotoModel,
+    images: StereoImages,
+}
+
+/// A card position along a random line of sight at depth `z`, inside the default
+/// search space (hand frame = left camera frame here before the hand-eye transform).
+fn position(rng: &mut StdRng, rig: &photopose::camera::StereoRig, z: f64) -> Vector3<f64> {
+    loop {
+        let u = rng.random_range(0.1..0.9) * rig.width as f64;
+        let v = rng.random_range(0.1..0.9) * rig.height as f64;
+        let p = rig.left.ray(u, v) * z;
+        if p.x.abs() < 260.0 && p.y.abs() < 260.0 {
+            return p;
+        }
+    }
+}
+
+/// Scene `i`: card, background photo, resolution, pose, noise and hand-eye drawn from
+/// a generator seeded with `i`.
+fn draw(i: u64) -> Drawn {
+    let mut rng = StdRng::seed_from_u64(7000 + i);
+    let card = rng.random_range(0..CARDS.len());
+    let wall = (card + rng.random_range(1..CARDS.len())) % CARDS.len();
+    let (name, bbox) = CARDS[card];
+    let fhd = rng.random_bool(0.3);
+    let mut config = Config::load(None).unwrap();
+    let offset = Vector3::new(rng.random_range(-40.0..40.0), rng.random_range(-40.0..40.0), 0.0);
+    config.left_from_hand = Isometry3::from_parts(
+        Translation3::from(offset),
+        UnitQuaternion::from_scaled_axis(Vector3::z() * rng.random_range(-0.2..0.2)),
+    );
+    let rig = config
+        .calibration
+        .rig(if fhd { Resolution::FHD } else { Resolution::HD })
+        .unwrap();
+    let z = rng.random_range(450.0..1000.0);
+    let length = if fhd {
+        rng.random_range(55.0..90.0)
+    } else {
+        rng.random_range(70.0..220.0)
+    };
+    let aspect = bbox[3] as f64 / bbox[2] as f64 * rng.random_range(0.85..1.15);
+    let tilt = rng.random_range(0.0..45f64).to_radians();
+    let axis = rng.random_range(0.0..std::f64::consts::TAU);
+    let rotation = UnitQuaternion::from_scaled_axis(Vector3::new(axis.cos(), axis.sin(), 0.0) * tilt)
+        * UnitQuaternion::from_scaled_axis(Vector3::z() * rng.random_range(-0.6..0.6));
+    let left_from_model = Isometry3::from_parts(Translation3::from(position(&mut rng, &rig, z)), rotation);
+    let hand_from_model = config.left_from_hand.inverse() * left_from_model;
+    let noise = if rng.random_bool(0.35) {
+        rng.random_range(3.0..9.0)
+    } else {
+        0.0
+    };
+    let full = photo(name);
+    let [x, y, w, h] = bbox;
+    let size_mm = [length, length * aspect];
+    let scene = Scene {
+        card: Card {
+            texture: image::imageops::crop_imm(&full, x as u32, y as u32, w as u32, h as u32).to_image(),
+            hand_from_model,
+            size_mm,
+        },
+        background: Background::from_texture(
+            &photo(CARDS[wall].0),
+            rng.random_range(1500.0..2500.0),
+            rng.random_range(2.5..5.0),
+        ),
+        noise_sigma: noise,
+        brightness: 1.0,
+        occluder: None,
+        seed: i,
+    };
+    let sbs = render::render(&rig, &config.left_from_hand, &scene);
+    let model = PhotoModel::build(
+        &full,
+        &data(format!("photos/{name}")),
+        bbox,
+        &config.model,
+        &config.fitness.classes(),
+    )
+    .unwrap();
+    Drawn {
+        name: format!("{i:>2} {name} on {}", CARDS[wall].0),
+        fhd,
+        noise,
+        tilt_deg: tilt.to_degrees(),
+        extent_px: length / z * rig.left.fx,
+        size_mm,
+        hand_from_model,
+        config,
+        model,
+        images: StereoImages::from_sbs(&sbs, Path::new("scene")).unwrap(),
+    }
+}
+
+/// Errors of an estimate: position mm, worst relative size, rotation degrees.
+fn errors(d: &Drawn, best: &PoseSize) -> [f64; 3] {
+    let size = best.size_mm(d.model.l_p, d.model.b_p);
+    let rel = |i: usize| (size[i] - d.size_mm[i]).abs() / d.size_mm[i];
+    [
+        (best.position - d.hand_from_model.translation.vector).norm(),
+        rel(0).max(rel(1)),
+        rotation_error_deg(&best.rotation(), &d.hand_from_model.rotation),
+    ]
+}
+
+#[test]
+#[ignore = "about a minute of estimates; CI runs it (see .ci/run)"]
+fn generalisation_scenes_are_estimated_or_flagged() {
+    let start = std::time::Instant::now();
+    println!(
+        "\n{:<32} {:>3} {:>5} {:>5} {:>5} | {:>7} {:>6} {:>6} | {:>5} {:>5} {:>5} found",
+        "scene", "res", "noise", "tilt°", "px", "pos mm", "size%", "rot°", "conf", "stereo", "struct"
+    );
+    let (mut ok, mut false_found, mut found, mut wrong) = (0, Vec::new(), 0, 0);
+    let n = 40;
+    for i in 0..n {
+        let d = draw(i);
+        let out = oneshot::run(
+            &d.model,
+            &d.images,
+            &d.config,
+            d.config.ga.generations,
+            d.config.ga.seed,
+            &mut |_| {},
+        )
+        .unwrap();
+        let [pos, size, rot] = errors(&d, &out.best);
+        let v = &out.verdict;
+        let good = pos <= 10.0 && size <= 0.05 && rot <= 5.0;
+        let far = pos > 20.0 || rot > 10.0;
+        ok += good as usize;
+        found += v.found as usize;
+        wrong += far as usize;
+        if far && v.found {
+            false_found.push(d.name.clone());
+        }
+        println!(
+            "{:<32} {:>3} {:>5.1} {:>5.1} {:>5.0} | {pos:>7.1} {:>6.1} {rot:>6.1} | {:>5.2} {:>5.2} {:>5.2} {}",
+            d.name,
+            if d.fhd { "FHD" } else { "HD" },
+            d.noise,
+            d.tilt_deg,
+            d.extent_px,
+            size * 100.0,
+            v.confidence,
+            v.texture.stereo,
+            v.texture.structure,
+            if v.found { "yes" } else { "no" }
+        );
+    }
+    let share = ok as f64 / n as f64;
+    println!(
+        "within 10 mm, 5 %, 5°: {ok} of {n} ({:.0} %; target 95 % clean, 85 % noisy: not reached); \
+         reported found: {found}; more than 20 mm or 10° off: {wrong}, of them reported found: {}; {:.0} s",
+        share * 100.0,
+        false_found.len(),
+        start.elapsed().as_secs_f64()
+    );
+    assert!(false_found.is_empty(), "wrong poses reported found: {false_found:?}");
+    assert!(
+        share >= SUCCESS_FLOOR,
+        "{ok} of {n} within 10 mm, 5 %, 5°: below the floor of {:.0} %",
+        SUCCESS_FLOOR * 100.0
+    );
+}
