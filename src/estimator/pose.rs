@@ -58,6 +58,26 @@ impl PoseSize {
         }
     }
 
+    /// This pose turned by `tilt` (radians) about the left-camera axis `axis` through
+    /// its centre (`left_from_hand` the hand–eye transform), and stretched across the
+    /// axis by `1 / cos tilt` so that its image keeps the extent it had.
+    pub fn tilted(&self, left_from_hand: &Isometry3<f64>, axis: Vector3<f64>, tilt: f64) -> Self {
+        let left = left_from_hand * self.hand_from_model();
+        let (mx, my) = (left.rotation * Vector3::x(), left.rotation * Vector3::y());
+        let across = Vector3::z().cross(&axis);
+        let stretch = 1.0 / tilt.cos().abs().max(0.2) - 1.0;
+        let turn = UnitQuaternion::from_scaled_axis(axis * tilt);
+        let hand = left_from_hand.inverse() * Isometry3::from_parts(left.translation, turn * left.rotation);
+        let (fl, fb) = (
+            1.0 + stretch * mx.dot(&across).powi(2),
+            1.0 + stretch * my.dot(&across).powi(2),
+        );
+        let mut q = Self::from_pose(&hand, [1.0, 1.0], 1.0, 1.0);
+        q.alpha = self.alpha / fl;
+        q.k = self.k * fl / fb;
+        q
+    }
+
     /// This pose with the size (`α`, `k`) of `other`.
     pub fn with_size_of(self, other: &PoseSize) -> Self {
         Self {
@@ -114,5 +134,20 @@ mod tests {
         let s = p.size_mm(200.0, 240.0);
         assert!((s[0] - 80.0).abs() < 1e-9 && (s[1] - 120.0).abs() < 1e-9);
         assert!(p.orientation_wxyz()[0] >= 0.0);
+    }
+
+    #[test]
+    fn a_tilt_turns_about_the_centre_and_stretches_across_the_axis() {
+        // Facing the camera, 600 mm ahead; the hand frame is the camera frame.
+        let facing = Isometry3::new(Vector3::new(20.0, -10.0, 600.0), Vector3::zeros());
+        let p = PoseSize::from_pose(&facing, [100.0, 80.0], 200.0, 160.0);
+        let tilt = 30f64.to_radians();
+        let q = p.tilted(&Isometry3::identity(), Vector3::x(), tilt);
+        assert!((q.position - p.position).norm() < 1e-9, "the centre stays");
+        assert!((q.rotation().angle_to(&p.rotation()) - tilt).abs() < 1e-9);
+        // About x the width (model y) foreshortens: it grows by 1 / cos 30°, the length stays.
+        let [l, b] = q.size_mm(200.0, 160.0);
+        assert!((l - 100.0).abs() < 1e-9, "{l}");
+        assert!((b - 80.0 / tilt.cos()).abs() < 1e-9, "{b}");
     }
 }

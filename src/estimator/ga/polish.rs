@@ -36,27 +36,7 @@ pub fn distinct(problem: &Problem, candidates: &[Genes], n: usize, apart_mm: f64
     kept.into_iter().map(|(g, _)| g).collect()
 }
 
-/// `p` turned by `tilt` (radians) about the left-camera axis `axis` through its centre,
-/// and stretched across the axis by `1 / cos tilt` so that its image keeps the extent
-/// that the untilted candidate had.
-pub fn tilt_about(p: &PoseSize, left_from_hand: &Isometry3<f64>, axis: Vector3<f64>, tilt: f64) -> PoseSize {
-    let left = left_from_hand * p.hand_from_model();
-    let (mx, my) = (left.rotation * Vector3::x(), left.rotation * Vector3::y());
-    let across = Vector3::z().cross(&axis);
-    let stretch = 1.0 / tilt.cos().abs().max(0.2) - 1.0;
-    let turn = UnitQuaternion::from_scaled_axis(axis * tilt);
-    let hand = left_from_hand.inverse() * Isometry3::from_parts(left.translation, turn * left.rotation);
-    let (fl, fb) = (
-        1.0 + stretch * mx.dot(&across).powi(2),
-        1.0 + stretch * my.dot(&across).powi(2),
-    );
-    let mut q = PoseSize::from_pose(&hand, [1.0, 1.0], 1.0, 1.0);
-    q.alpha = p.alpha / fl;
-    q.k = p.k * fl / fb;
-    q
-}
-
-/// `g` and its variants: rolled, resized and tilted ([`tilt_about`] axes in the image
+/// `g` and its variants: rolled, resized and tilted ([`PoseSize::tilted`] about axes in the image
 /// plane). The scan places the model facing the camera on a coarse grid of sizes and
 /// rolls; each variant starts the polish nearer one of the true poses it may stand for.
 fn variants(problem: &Problem, g: &Genes) -> Vec<Genes> {
@@ -82,7 +62,7 @@ fn variants(problem: &Problem, g: &Genes) -> Vec<Genes> {
                     out.push(
                         problem
                             .bounds
-                            .encode(&tilt_about(&sized, left_from_hand, axis, tilt.to_radians())),
+                            .encode(&sized.tilted(left_from_hand, axis, tilt.to_radians())),
                     );
                 }
             }

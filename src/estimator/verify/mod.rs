@@ -7,7 +7,6 @@ pub mod texture;
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 use crate::estimator::fitness::PointSet;
-use crate::estimator::ga::polish::tilt_about;
 use crate::estimator::pose::PoseSize;
 use crate::vision::frame::{coarse_levels, StereoImages};
 use texture::{Brightness, Texture};
@@ -104,7 +103,7 @@ pub fn perturbations(p: &PoseSize, left_from_hand: &Isometry3<f64>) -> Vec<PoseS
     let mut out = Vec::with_capacity(10);
     for axis in [Vector3::x(), Vector3::y()] {
         for sign in [-1.0, 1.0] {
-            out.push(tilt_about(p, left_from_hand, axis, sign * turn));
+            out.push(p.tilted(left_from_hand, axis, sign * turn));
         }
     }
     let left = left_from_hand * p.hand_from_model();
@@ -121,4 +120,56 @@ pub fn perturbations(p: &PoseSize, left_from_hand: &Isometry3<f64>) -> Vec<PoseS
         out.push(PoseSize::from_pose(&(left_from_hand.inverse() * moved), [1.0, 1.0], 1.0, 1.0).with_size_of(p));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn verdict(stereo: f64, structure: f64, sharpness: f64) -> Verdict {
+        Verdict::of(Texture { stereo, structure }, sharpness)
+    }
+
+    #[test]
+    fn the_weakest_input_sets_the_confidence() {
+        let v = verdict(1.0, 1.0, 0.2);
+        assert!(v.found && v.confidence == 1.0);
+        // Each input alone just above its threshold (confidence 0.75) is just found.
+        for v in [
+            verdict(0.851, 1.0, 0.2),
+            verdict(1.0, 0.901, 0.2),
+            verdict(1.0, 1.0, 0.0601),
+        ] {
+            assert!((v.confidence - 0.75).abs() < 0.01 && v.found, "{v:?}");
+        }
+        // Just below any threshold, or a pose a nearby pose beats: not found.
+        for v in [
+            verdict(0.84, 1.0, 0.2),
+            verdict(1.0, 0.89, 0.2),
+            verdict(1.0, 1.0, 0.05),
+            verdict(1.0, 1.0, -0.01),
+        ] {
+            assert!(!v.found, "{v:?}");
+        }
+        assert_eq!(verdict(0.2, 0.1, -1.0).confidence, 0.0);
+    }
+
+    #[test]
+    fn perturbations_move_the_pose_by_the_tolerance() {
+        let facing = Isometry3::new(Vector3::new(0.0, 0.0, 700.0), Vector3::zeros());
+        let p = PoseSize::from_pose(&facing, [100.0, 100.0], 200.0, 200.0);
+        let moved = perturbations(&p, &Isometry3::identity());
+        assert_eq!(moved.len(), 10);
+        for q in &moved {
+            let turn = q.rotation().angle_to(&p.rotation()).to_degrees();
+            let shift = (q.position - p.position).norm();
+            let size = (q.alpha / p.alpha).ln().abs();
+            let one = [
+                (turn - 8.0).abs() < 1e-6,
+                (shift - 15.0).abs() < 1e-6,
+                (size - 1.08f64.ln()).abs() < 0.01,
+            ];
+            assert!(one.iter().any(|&b| b), "{turn}° {shift} mm {size}");
+        }
+    }
 }
