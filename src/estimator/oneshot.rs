@@ -13,7 +13,7 @@ use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::Mode;
 use crate::estimator::verify::texture;
 use crate::estimator::verify::{BrightnessPyramid, TextureTerm, Verdict};
-use crate::vision::frame::StereoImages;
+use crate::vision::frame::{coarse_levels, StereoImages};
 use crate::vision::lookup::LevelLookup;
 
 /// The per-frame inputs of the search, prepared once.
@@ -47,8 +47,10 @@ impl Prepared {
         };
         let scorer = scorer_for(model, config);
         let start = std::time::Instant::now();
-        let levels = LevelLookup::pyramid(images, &rig, levels, &scorer.texel_rule());
-        let brightness = BrightnessPyramid::new(images, levels.len());
+        // The coarse images once, for the colour lookups and the brightness alike.
+        let coarse = coarse_levels(images, levels);
+        let levels = LevelLookup::pyramid_of(images, &coarse, &rig, &scorer.texel_rule());
+        let brightness = BrightnessPyramid::new(images, &coarse);
         tracing::debug!("frame preparation: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
         let bounds = Bounds::new(&config.search, model, mode == Mode::Robust);
         let points = ga::level_points(model, &scorer, levels.len(), mode == Mode::Robust);

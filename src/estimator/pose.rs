@@ -78,12 +78,17 @@ impl PoseSize {
         q
     }
 
-    /// This pose with the size (`α`, `k`) of `other`.
-    pub fn with_size_of(self, other: &PoseSize) -> Self {
+    /// This pose rolled by `angle` (radians) about the left camera's line of sight
+    /// through its centre (`left_from_hand` the hand–eye transform), size unchanged.
+    pub fn rolled(&self, left_from_hand: &Isometry3<f64>, angle: f64) -> Self {
+        let left = left_from_hand * self.hand_from_model();
+        let sight = left.translation.vector.normalize();
+        let turned = UnitQuaternion::from_scaled_axis(sight * angle) * left.rotation;
+        let hand = left_from_hand.inverse() * Isometry3::from_parts(left.translation, turned);
         Self {
-            alpha: other.alpha,
-            k: other.k,
-            ..self
+            alpha: self.alpha,
+            k: self.k,
+            ..Self::from_pose(&hand, [1.0, 1.0], 1.0, 1.0)
         }
     }
 

@@ -432,6 +432,12 @@ impl LevelLookup {
     /// The lookups of every pyramid level of a frame taken with `rig`, level 0 at full
     /// resolution (see [`crate::vision::frame::coarse_levels`]).
     pub fn pyramid(images: &StereoImages, rig: &StereoRig, levels: usize, rule: &TexelRule) -> Vec<Self> {
+        Self::pyramid_of(images, &coarse_levels(images, levels), rig, rule)
+    }
+
+    /// The lookups of `images` (level 0) and of its already computed `coarse` levels
+    /// 1, 2, … (for a caller that needs those images for more than the lookups).
+    pub fn pyramid_of(images: &StereoImages, coarse: &[StereoImages], rig: &StereoRig, rule: &TexelRule) -> Vec<Self> {
         let level = |scale: f64, im: &StereoImages| {
             let mut rig = rig.scaled(scale);
             (rig.width, rig.height) = im.eye_size();
@@ -444,9 +450,9 @@ impl LevelLookup {
         };
         let mut out = vec![level(1.0, images)];
         let mut scale = 1.0;
-        for im in coarse_levels(images, levels) {
+        for im in coarse {
             scale *= 0.5;
-            out.push(level(scale, &im));
+            out.push(level(scale, im));
         }
         out
     }

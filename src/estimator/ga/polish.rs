@@ -5,7 +5,7 @@
 //! followed one population could settle on a same-coloured region while the target
 //! sat elsewhere in the frame; this way each plausible region gets its own refinement.
 
-use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 use rand::Rng;
 
 use super::{best_index, normal, Genes, Problem, Ties, GENES};
@@ -42,13 +42,9 @@ pub fn distinct(problem: &Problem, candidates: &[Genes], n: usize, apart_mm: f64
 fn variants(problem: &Problem, g: &Genes) -> Vec<Genes> {
     let p = problem.bounds.decode(g);
     let left_from_hand = &problem.scorer.left_from_hand;
-    let left = left_from_hand * p.hand_from_model();
-    let sight = left.translation.vector.normalize();
     let mut out = Vec::new();
     for roll in ROLLS_DEG {
-        let turned = UnitQuaternion::from_scaled_axis(sight * roll.to_radians()) * left.rotation;
-        let hand = left_from_hand.inverse() * Isometry3::from_parts(left.translation, turned);
-        let rolled = PoseSize::from_pose(&hand, [1.0, 1.0], 1.0, 1.0).with_size_of(&p);
+        let rolled = p.rolled(left_from_hand, roll.to_radians());
         for scale in SCALES {
             let sized = PoseSize {
                 alpha: rolled.alpha / scale,

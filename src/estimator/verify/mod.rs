@@ -4,11 +4,11 @@
 
 pub mod texture;
 
-use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Vector3};
 
 use crate::estimator::fitness::PointSet;
 use crate::estimator::pose::PoseSize;
-use crate::vision::frame::{coarse_levels, StereoImages};
+use crate::vision::frame::StereoImages;
 use texture::{Brightness, Texture};
 
 /// Both eyes' brightness at every pyramid level, level 0 at full resolution.
@@ -17,16 +17,13 @@ pub struct BrightnessPyramid {
 }
 
 impl BrightnessPyramid {
-    /// The pyramid of `images` with `levels` levels (the same halving and blur as the
-    /// colour pyramid's).
-    pub fn new(images: &StereoImages, levels: usize) -> Self {
-        let mut out = vec![[Brightness::of(&images.left), Brightness::of(&images.right)]];
-        out.extend(
-            coarse_levels(images, levels)
-                .iter()
-                .map(|im| [Brightness::of(&im.left), Brightness::of(&im.right)]),
-        );
-        Self { levels: out }
+    /// The pyramid of `images` (level 0) and its `coarse` levels 1, 2, … (the colour
+    /// pyramid's, [`crate::vision::frame::coarse_levels`]).
+    pub fn new(images: &StereoImages, coarse: &[StereoImages]) -> Self {
+        let eyes = |im: &StereoImages| [Brightness::of(&im.left), Brightness::of(&im.right)];
+        Self {
+            levels: std::iter::once(images).chain(coarse).map(eyes).collect(),
+        }
     }
 
     /// Both eyes on level `l` (the coarsest if `l` is beyond it).
@@ -106,18 +103,19 @@ pub fn perturbations(p: &PoseSize, left_from_hand: &Isometry3<f64>) -> Vec<PoseS
             out.push(p.tilted(left_from_hand, axis, sign * turn));
         }
     }
-    let left = left_from_hand * p.hand_from_model();
-    let sight = left.translation.vector.normalize();
+    // The line of sight through the centre, in the hand frame.
+    let sight = left_from_hand.inverse_transform_vector(&(left_from_hand * p.hand_from_model()).translation.vector);
+    let sight = sight.normalize();
     for sign in [-1.0, 1.0] {
-        let rolled = UnitQuaternion::from_scaled_axis(sight * sign * turn) * left.rotation;
-        let hand = left_from_hand.inverse() * Isometry3::from_parts(left.translation, rolled);
-        out.push(PoseSize::from_pose(&hand, [1.0, 1.0], 1.0, 1.0).with_size_of(p));
+        out.push(p.rolled(left_from_hand, sign * turn));
         out.push(PoseSize {
             alpha: p.alpha * (1.0 + 0.08 * sign),
             ..*p
         });
-        let moved = Isometry3::from_parts((left.translation.vector + sight * 15.0 * sign).into(), left.rotation);
-        out.push(PoseSize::from_pose(&(left_from_hand.inverse() * moved), [1.0, 1.0], 1.0, 1.0).with_size_of(p));
+        out.push(PoseSize {
+            position: p.position + sight * 15.0 * sign,
+            ..*p
+        });
     }
     out
 }
