@@ -92,6 +92,36 @@ impl PoseSize {
         }
     }
 
+    /// This pose with its length (`along_length`) or its width times `factor`, for a
+    /// `box_px` photo box: about the centre (`side` 0) or with the edge at `-side` of
+    /// that axis fixed (`side` ±0.5), the centre moving by `side` times the change.
+    pub fn resized(&self, box_px: [f64; 2], along_length: bool, factor: f64, side: f64) -> Self {
+        let [length, width] = self.size_mm(box_px[0], box_px[1]);
+        let mut q = *self;
+        let (axis, extent) = if along_length {
+            // β = α·k stays: only the length changes.
+            q.alpha /= factor;
+            q.k *= factor;
+            (Vector3::x(), length)
+        } else {
+            q.k /= factor;
+            (Vector3::y(), width)
+        };
+        q.position += self.rotation() * axis * (side * (factor - 1.0) * extent);
+        q
+    }
+
+    /// This pose turned by `angle` (radians) about its own `axis` (model coordinates)
+    /// through its centre, size unchanged.
+    pub fn turned(&self, axis: Vector3<f64>, angle: f64) -> Self {
+        let rotation = self.rotation() * UnitQuaternion::from_scaled_axis(axis * angle);
+        let [_, x, y, z] = wxyz(&rotation);
+        Self {
+            eps: Vector3::new(x, y, z),
+            ..*self
+        }
+    }
+
     /// The orientation as `[w, x, y, z]` with `w ≥ 0`.
     pub fn orientation_wxyz(&self) -> [f64; 4] {
         wxyz(&self.rotation())

@@ -6,6 +6,7 @@
 //! from a seeded RNG. Tracking keeps a [`live::LivePopulation`] from frame to frame.
 
 pub mod cmaes;
+pub mod compass;
 pub mod live;
 pub mod paper;
 pub mod polish;

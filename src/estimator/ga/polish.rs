@@ -1,7 +1,9 @@
 //! Several hypotheses, each polished: the scan's best distinct placements and the GA's
 //! result are each tried at a range of tilts (the scan places the model facing the
 //! camera) and refined by a CMA-ES ([`super::cmaes`]) on the half and the full
-//! resolution, where the texture terms rank candidates. The best polished hypothesis wins. A search that
+//! resolution, where the texture terms rank candidates, then climbed by a compass search
+//! ([`super::compass`]). Each is also tried grown: the scan often matches a uniform
+//! part of its target. The best polished hypothesis wins. A search that
 //! followed one population could settle on a same-coloured region while the target
 //! sat elsewhere in the frame; this way each plausible region gets its own refinement.
 
@@ -20,20 +22,25 @@ const TILTS_DEG: [f64; 3] = [15.0, 30.0, 45.0];
 const TILT_AXES: usize = 8;
 
 /// Up to `n` of `candidates` (best first) that differ from each other's by at least
-/// `apart_mm` in position or 15 % in length.
-pub fn distinct(problem: &Problem, candidates: &[Genes], n: usize, apart_mm: f64) -> Vec<Genes> {
-    let mut kept: Vec<(Genes, PoseSize)> = Vec::with_capacity(n);
+/// `apart_mm` in position or 15 % in length, and at most `per_octave` of each octave
+/// of apparent size (length over depth).
+pub fn distinct(problem: &Problem, candidates: &[Genes], n: usize, apart_mm: f64, per_octave: usize) -> Vec<Genes> {
+    let mut kept: Vec<(Genes, PoseSize, i32)> = Vec::with_capacity(n);
+    let [l_p, b_p] = problem.scorer.box_px;
     for g in candidates {
         let p = problem.bounds.decode(g);
+        let depth = (problem.scorer.left_from_hand * nalgebra::Point3::from(p.position)).z;
+        let octave = (p.size_mm(l_p, b_p)[0] / depth.max(1.0)).log2().floor() as i32;
         let near = |q: &PoseSize| (p.position - q.position).norm() < apart_mm && (p.alpha / q.alpha).ln().abs() < 0.15;
-        if !kept.iter().any(|(_, q)| near(q)) {
-            kept.push((*g, p));
+        let full = kept.iter().filter(|k| k.2 == octave).count() >= per_octave;
+        if !full && !kept.iter().any(|(_, q, _)| near(q)) {
+            kept.push((*g, p, octave));
             if kept.len() == n {
                 break;
             }
         }
     }
-    kept.into_iter().map(|(g, _)| g).collect()
+    kept.into_iter().map(|(g, _, _)| g).collect()
 }
 
 /// `g` and its variants: rolled, resized and tilted ([`PoseSize::tilted`] about axes in the image
@@ -67,8 +74,33 @@ fn variants(problem: &Problem, g: &Genes) -> Vec<Genes> {
     out
 }
 
-/// The best of `hypotheses` after each is tried at its [`variants`] on `level`
-/// and refined there and on level 0, `evaluations` each per level.
+/// Larger copies of `p`, each placed at a grid of centres around the old one: a model
+/// that matched part of its target (a uniform area of it, on the scan's coarse grid)
+/// grows over the whole target from wherever inside it it sat.
+fn grown(problem: &Problem, p: &PoseSize) -> Vec<Genes> {
+    let [l_p, b_p] = problem.scorer.box_px;
+    let [length, width] = p.size_mm(l_p, b_p);
+    let mut out = Vec::new();
+    for factor in GROWTH {
+        let reach = (factor - 1.0) / 3.0;
+        for (i, j) in (-1..=1).flat_map(|i| (-1..=1).map(move |j| (i, j))) {
+            let mut q = PoseSize {
+                alpha: p.alpha / factor,
+                ..*p
+            };
+            q.position += p.rotation() * Vector3::new(i as f64 * reach * length, j as f64 * reach * width, 0.0);
+            out.push(problem.bounds.encode(&q));
+        }
+    }
+    out
+}
+
+/// Size factors of [`grown`].
+const GROWTH: [f64; 4] = [1.5, 2.0, 2.7, 3.5];
+
+/// The best of `hypotheses` after each is tried twice, from the best of its
+/// [`variants`] and from the best of its [`grown`] copies on `level`, and refined there
+/// and on level 0 ([`refined`]), `evaluations` each per stage.
 pub fn best(
     problem: &Problem,
     hypotheses: &[Genes],
@@ -76,17 +108,34 @@ pub fn best(
     evaluations: usize,
     rng: &mut impl Rng,
 ) -> (Genes, Fitness) {
-    let mut results = Vec::with_capacity(hypotheses.len());
+    let mut results = Vec::with_capacity(2 * hypotheses.len());
     for h in hypotheses {
-        let start = best_of(problem, level, variants(problem, h));
-        let start = best_of(problem, level, edge_variants(problem, &start));
-        let (g, _) = super::cmaes::maximise(problem, level, start, 3.0 * SIGMA, evaluations, rng);
-        let (g, _) = super::cmaes::maximise(problem, 0, g, SIGMA, evaluations, rng);
-        let g = best_of(problem, 0, edge_variants(problem, &g));
-        results.push(super::cmaes::maximise(problem, 0, g, SIGMA / 2.0, evaluations / 2, rng));
+        let p = problem.bounds.decode(h);
+        let left_from_hand = &problem.scorer.left_from_hand;
+        let grown_all: Vec<Genes> = ROLLS_DEG
+            .iter()
+            .flat_map(|r| grown(problem, &p.rolled(left_from_hand, r.to_radians())))
+            .collect();
+        for start in [
+            best_of(problem, level, variants(problem, h)),
+            best_of(problem, level, grown_all),
+        ] {
+            results.push(refined(problem, start, level, evaluations, rng));
+        }
     }
     let fits: Vec<Fitness> = results.iter().map(|r| r.1).collect();
     results[best_index(&fits, Ties::First)]
+}
+
+/// `start` after one-sided resizes and CMA-ES on `level` and on level 0, then the
+/// compass search on level 0.
+fn refined(problem: &Problem, start: Genes, level: usize, evaluations: usize, rng: &mut impl Rng) -> (Genes, Fitness) {
+    let start = best_of(problem, level, edge_variants(problem, &start));
+    let (g, _) = super::cmaes::maximise(problem, level, start, 3.0 * SIGMA, evaluations, rng);
+    let (g, _) = super::cmaes::maximise(problem, 0, g, SIGMA, evaluations, rng);
+    let g = best_of(problem, 0, edge_variants(problem, &g));
+    let (g, _) = super::cmaes::maximise(problem, 0, g, SIGMA / 2.0, evaluations / 2, rng);
+    super::compass::climb(problem, 0, g, evaluations / 2)
 }
 
 /// The best of `candidates` on `level` (the first of equals).
@@ -103,21 +152,15 @@ fn best_of(problem: &Problem, level: usize, candidates: Vec<Genes>) -> Genes {
 /// a local peak that a mutation of one gene leaves only by chance.
 fn edge_variants(problem: &Problem, g: &Genes) -> Vec<Genes> {
     let p = problem.bounds.decode(g);
-    let [l_p, b_p] = problem.scorer.box_px;
-    let size = p.size_mm(l_p, b_p);
     let mut out = vec![*g];
-    for (axis, extent) in [(Vector3::x(), size[0]), (Vector3::y(), size[1])] {
+    for along_length in [true, false] {
         for factor in EDGE_FACTORS {
             for side in [-0.5, 0.0, 0.5] {
-                let mut q = p;
-                if axis == Vector3::x() {
-                    q.alpha /= factor;
-                    q.k *= factor;
-                } else {
-                    q.k /= factor;
-                }
-                q.position += p.rotation() * axis * (side * (factor - 1.0) * extent);
-                out.push(problem.bounds.encode(&q));
+                out.push(
+                    problem
+                        .bounds
+                        .encode(&p.resized(problem.scorer.box_px, along_length, factor, side)),
+                );
             }
         }
     }

@@ -47,21 +47,10 @@ pub(super) fn mutate(g: &mut Genes, sigma: f64, rng: &mut impl Rng) {
 /// the other inside it, grows back along this ridge, which single-gene mutations cross
 /// only by chance.
 pub(super) fn mutate_from_edge(g: &mut Genes, bounds: &Bounds, box_px: [f64; 2], step: f64, rng: &mut impl Rng) {
-    let mut p = bounds.decode(g);
+    let p = bounds.decode(g);
     let factor = (step * normal(rng)).exp();
-    let [length, width] = p.size_mm(box_px[0], box_px[1]);
-    let (axis, extent) = if rng.random::<bool>() {
-        // β = α·k stays: only the length changes.
-        p.alpha /= factor;
-        p.k *= factor;
-        (Vector3::x(), length)
-    } else {
-        p.k /= factor;
-        (Vector3::y(), width)
-    };
-    // The centre moves away from the fixed edge by half the change of the extent.
     let side = if rng.random::<bool>() { 0.5 } else { -0.5 };
-    p.position += p.rotation() * axis * (side * (factor - 1.0) * extent);
+    let p = p.resized(box_px, rng.random::<bool>(), factor, side);
     *g = bounds.encode(&p);
 }
 
@@ -270,7 +259,7 @@ impl<'p, 'a> Search<'p, 'a> {
         let start = Instant::now();
         let mut scanned = if self.levels > 1 {
             let scan = super::scan::seeds(problem, n);
-            self.hypotheses = super::polish::distinct(problem, &scan.regions, HYPOTHESES, 40.0);
+            self.hypotheses = super::polish::distinct(problem, &scan.regions, HYPOTHESES, 40.0, HYPOTHESES / 4);
             Some(scan.seeds).filter(|s| !s.is_empty())
         } else {
             None
@@ -384,7 +373,7 @@ impl<'p, 'a> Search<'p, 'a> {
         let start = Instant::now();
         let mut hypotheses = vec![self.best()];
         hypotheses.extend(self.hypotheses.iter().copied());
-        let hypotheses = super::polish::distinct(self.problem, &hypotheses, HYPOTHESES + 1, 20.0);
+        let hypotheses = super::polish::distinct(self.problem, &hypotheses, HYPOTHESES + 1, 20.0, HYPOTHESES + 1);
         let (best, _) = super::polish::best(
             self.problem,
             &hypotheses,

@@ -37,6 +37,8 @@ struct Placement {
     l_over_z: f64,
     /// The in-plane rotation (about the line of sight).
     roll: UnitQuaternion<f64>,
+    /// Index of its apparent size, `0..SIZES`.
+    size: usize,
 }
 
 impl Placement {
@@ -160,6 +162,7 @@ impl<'p, 'a> Scan<'p, 'a> {
                     ray,
                     l_over_z,
                     roll,
+                    size: si,
                 }));
             }
         }
@@ -226,18 +229,26 @@ impl<'p, 'a> Scan<'p, 'a> {
     }
 }
 
-/// Up to [`KEEP`] placements in `order`, skipping any within a few pixels of a kept
-/// (better) one of similar size.
+/// Up to [`KEEP`] placements in `order`, at most an equal share of each apparent size,
+/// skipping any within a few pixels of a kept (better) one of similar size. Small
+/// placements inside a target's uniform areas score high on the coarse grid of rolls
+/// and sizes, where a target-sized one is slightly off; without the shares they crowd out
+/// every larger size.
 fn distinct(placements: &[Placement], order: &[usize]) -> Vec<Placement> {
     let mut kept: Vec<Placement> = Vec::with_capacity(KEEP);
+    let mut per_size = [0usize; SIZES];
     for &i in order {
         let p = placements[i];
+        if per_size[p.size] == KEEP / SIZES {
+            continue;
+        }
         let near = kept.iter().any(|k| {
             let size_ratio = (p.l_over_z / k.l_over_z).ln().abs();
             (p.u - k.u).hypot(p.v - k.v) < 3.0 * STEP_PX && size_ratio < 0.5
         });
         if !near {
             kept.push(p);
+            per_size[p.size] += 1;
             if kept.len() == KEEP {
                 break;
             }

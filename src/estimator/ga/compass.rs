@@ -1,0 +1,112 @@
+//! The last step of the polish: a compass search along the moves a model makes on its
+//! target (resize, one-sided resize, shift in its plane, along the line of sight with
+//! or without its apparent size, tilt, roll). The fitness peaks sharply at the true
+//! size and falls off unevenly on either side; an evolution strategy's step adapts
+//! to the steepest side and then creeps along the gentle one. Steps along these
+//! directions, halved when none improves, climb the ridge within a few hundred
+//! evaluations.
+
+use nalgebra::{Point3, Vector3};
+
+use super::{best_index, Genes, Problem, Ties};
+use crate::estimator::fitness::Fitness;
+use crate::estimator::pose::PoseSize;
+
+/// First and last relative step (of size; positions and angles scale with it).
+const FIRST_STEP: f64 = 0.04;
+const LAST_STEP: f64 = 0.0025;
+/// Radians of tilt or roll per unit of relative step.
+const TURN_PER_STEP: f64 = 0.9;
+
+/// The moves, each taken forward and back by the current step.
+#[derive(Debug, Clone, Copy)]
+enum Move {
+    /// Length and width together, about the centre.
+    Scale,
+    /// Length or width (`true`: length), about the centre (`side` 0) or one edge.
+    Resize(bool, f64),
+    /// Along the model's own x or y axis, by the step times its length.
+    Shift(Vector3<f64>),
+    /// Along the left camera's line of sight, by the step times a quarter of the depth;
+    /// with `keep_apparent`, the size grows with the depth.
+    Sight { keep_apparent: bool },
+    /// About the model's own axis.
+    Turn(Vector3<f64>),
+}
+
+const MOVES: [Move; 14] = [
+    Move::Scale,
+    Move::Resize(true, 0.0),
+    Move::Resize(false, 0.0),
+    Move::Resize(true, 0.5),
+    Move::Resize(true, -0.5),
+    Move::Resize(false, 0.5),
+    Move::Resize(false, -0.5),
+    Move::Shift(Vector3::new(1.0, 0.0, 0.0)),
+    Move::Shift(Vector3::new(0.0, 1.0, 0.0)),
+    Move::Sight { keep_apparent: false },
+    Move::Sight { keep_apparent: true },
+    Move::Turn(Vector3::new(1.0, 0.0, 0.0)),
+    Move::Turn(Vector3::new(0.0, 1.0, 0.0)),
+    Move::Turn(Vector3::new(0.0, 0.0, 1.0)),
+];
+
+/// `p` moved by `m` with the signed relative step `s`.
+fn moved(problem: &Problem, p: &PoseSize, m: Move, s: f64) -> PoseSize {
+    let box_px = problem.scorer.box_px;
+    match m {
+        Move::Scale => PoseSize {
+            alpha: p.alpha / (1.0 + s),
+            ..*p
+        },
+        Move::Resize(along_length, side) => p.resized(box_px, along_length, 1.0 + s, side),
+        Move::Shift(axis) => {
+            let length = p.size_mm(box_px[0], box_px[1])[0];
+            PoseSize {
+                position: p.position + p.rotation() * axis * (s * length),
+                ..*p
+            }
+        }
+        Move::Sight { keep_apparent } => {
+            let hand_from_left = problem.scorer.left_from_hand.inverse();
+            let left = problem.scorer.left_from_hand * Point3::from(p.position);
+            let shifted = left + left.coords * (s / 4.0);
+            let alpha = if keep_apparent {
+                p.alpha / (1.0 + s / 4.0)
+            } else {
+                p.alpha
+            };
+            PoseSize {
+                position: (hand_from_left * shifted).coords,
+                alpha,
+                ..*p
+            }
+        }
+        Move::Turn(axis) => p.turned(axis, s * TURN_PER_STEP),
+    }
+}
+
+/// Climbs from `start` on `level` for at most `budget` evaluations; returns the best
+/// and its fitness.
+pub fn climb(problem: &Problem, level: usize, start: Genes, budget: usize) -> (Genes, Fitness) {
+    let mut best = (start, problem.evaluate(level, &start));
+    let mut step = FIRST_STEP;
+    let mut used = 1;
+    let mut fit = vec![Fitness::default(); 2 * MOVES.len()];
+    while step >= LAST_STEP && used + fit.len() <= budget {
+        let p = problem.bounds.decode(&best.0);
+        let around: Vec<Genes> = MOVES
+            .iter()
+            .flat_map(|&m| [step, -step].map(|s| problem.bounds.encode(&moved(problem, &p, m, s))))
+            .collect();
+        problem.evaluate_batch(level, &around, &mut fit);
+        used += around.len();
+        let i = best_index(&fit, Ties::First);
+        if fit[i].score > best.1.score {
+            best = (around[i], fit[i]);
+        } else {
+            step /= 2.0;
+        }
+    }
+    best
+}
