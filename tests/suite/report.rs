@@ -24,10 +24,10 @@ const MEDIANS: Errors = Errors {
 };
 
 /// Floors of the success shares, asserted against regressions: the shares measured on
-/// 2026-11-30 (clean 22 of 32, hard 12 of 22) less two scenes. The targets above are
+/// 2026-12-01 (clean 28 of 32, hard 14 of 22) less two scenes. The targets above are
 /// reported, not asserted, until they are reached.
 const CLEAN_FLOOR: f64 = 0.81;
-const HARD_FLOOR: f64 = 0.5;
+const HARD_FLOOR: f64 = 0.54;
 /// A pose this far off must never be reported found: position mm, rotation degrees.
 const WRONG_MM: f64 = 20.0;
 const WRONG_DEG: f64 = 10.0;

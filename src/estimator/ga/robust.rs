@@ -49,8 +49,10 @@ pub(super) fn mutate(g: &mut Genes, sigma: f64, rng: &mut impl Rng) {
 pub(super) fn mutate_from_edge(g: &mut Genes, bounds: &Bounds, box_px: [f64; 2], step: f64, rng: &mut impl Rng) {
     let p = bounds.decode(g);
     let factor = (step * normal(rng)).exp();
+    let along_length = rng.random::<bool>();
+    // The centre moves away from the fixed edge by half the change of the extent.
     let side = if rng.random::<bool>() { 0.5 } else { -0.5 };
-    let p = p.resized(box_px, rng.random::<bool>(), factor, side);
+    let p = p.resized(box_px, along_length, factor, side);
     *g = bounds.encode(&p);
 }
 
