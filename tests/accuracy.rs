@@ -321,3 +321,19 @@ fn ground_truth_is_the_robust_fitness_peak() {
         held.len()
     );
 }
+
+/// The one-shot result does not depend on the number of fitness threads: the polish's
+/// refinements run side by side, each with its own seeded generator.
+#[test]
+fn one_shot_is_the_same_on_one_and_two_threads() {
+    let spec = &scenes::all()[0];
+    let r = scenes::render(spec, 100);
+    let on = |threads: usize| {
+        let mut config = r.config.clone();
+        config.ga.threads = threads;
+        oneshot::run(&r.model, &r.images, &config, 300, 7, &mut |_| {}).expect("calibrated")
+    };
+    let (one, two) = (on(1), on(2));
+    assert_eq!(one.best, two.best, "same pose and size on 1 and 2 threads");
+    assert_eq!(one.fitness.score, two.fitness.score);
+}

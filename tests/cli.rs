@@ -235,11 +235,15 @@ fn bench_json_reports_every_figure() {
     );
     assert_eq!(r["threads"], 2);
     assert_eq!(r["tracking_frames"], 6);
+    assert_eq!(
+        r["oneshot_generations"], 1000,
+        "the one-shot runs the configured generations"
+    );
     let num = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("no number {k} in {text}"));
     for k in [
         "points_per_s_1t",
         "points_per_s_all",
-        "oneshot_1000_s",
+        "oneshot_s",
         "tracking_frame_p50_ms",
     ] {
         assert!(num(k) > 0.0 && num(k).is_finite(), "{k} = {}", num(k));

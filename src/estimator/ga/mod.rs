@@ -147,6 +147,16 @@ impl<'a> Problem<'a> {
         }
     }
 
+    /// The same problem evaluated on the calling thread alone: for work that runs
+    /// several searches side by side, one per worker.
+    pub fn serial(&self) -> Problem<'a> {
+        Problem {
+            workers: Workers::new(1),
+            texture: self.texture,
+            ..*self
+        }
+    }
+
     /// The problem with the texture terms in its ranking.
     pub fn with_texture(self, texture: TextureTerm<'a>) -> Self {
         Self {

@@ -8,7 +8,8 @@
 //! sat elsewhere in the frame; this way each plausible region gets its own refinement.
 
 use nalgebra::Vector3;
-use rand::Rng;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
 
 use super::{best_index, normal, Genes, Problem, Ties, GENES};
 use crate::estimator::fitness::Fitness;
@@ -99,8 +100,10 @@ fn grown(problem: &Problem, p: &PoseSize) -> Vec<Genes> {
 const GROWTH: [f64; 4] = [1.5, 2.0, 2.7, 3.5];
 
 /// The best of `hypotheses` after each is tried twice, from the best of its
-/// [`variants`] and from the best of its [`grown`] copies on `level`, and refined there
-/// and on level 0 ([`refined`]), `evaluations` each per stage.
+/// [`variants`] and from the best of its [`grown`] copies on `level`, refined there
+/// ([`coarse`]); the [`FINALISTS`] best of those are refined on level 0 ([`fine`]),
+/// `evaluations` each per stage. The refinements run side by side, one per worker
+/// (each seeded from `rng`, so the result does not depend on the threads).
 pub fn best(
     problem: &Problem,
     hypotheses: &[Genes],
@@ -108,7 +111,7 @@ pub fn best(
     evaluations: usize,
     rng: &mut impl Rng,
 ) -> (Genes, Fitness) {
-    let mut results = Vec::with_capacity(2 * hypotheses.len());
+    let mut starts = Vec::with_capacity(2 * hypotheses.len());
     for h in hypotheses {
         let p = problem.bounds.decode(h);
         let left_from_hand = &problem.scorer.left_from_hand;
@@ -116,26 +119,56 @@ pub fn best(
             .iter()
             .flat_map(|r| grown(problem, &p.rolled(left_from_hand, r.to_radians())))
             .collect();
-        for start in [
-            best_of(problem, level, variants(problem, h)),
-            best_of(problem, level, grown_all),
-        ] {
-            results.push(refined(problem, start, level, evaluations, rng));
-        }
+        starts.push(best_of(problem, level, variants(problem, h)));
+        starts.push(best_of(problem, level, grown_all));
     }
+    let serial = problem.serial();
+    let mut coarse_results = side_by_side(problem, &starts, rng, |g, rng| {
+        coarse(&serial, *g, level, evaluations, rng)
+    });
+    coarse_results.sort_by(|a, b| b.1.score.total_cmp(&a.1.score));
+    let finalists: Vec<Genes> = coarse_results.iter().take(FINALISTS).map(|r| r.0).collect();
+    let results = side_by_side(problem, &finalists, rng, |g, rng| fine(&serial, *g, evaluations, rng));
     let fits: Vec<Fitness> = results.iter().map(|r| r.1).collect();
     results[best_index(&fits, Ties::First)]
 }
 
-/// `start` after one-sided resizes and CMA-ES on `level` and on level 0, then the
-/// compass search on level 0.
-fn refined(problem: &Problem, start: Genes, level: usize, evaluations: usize, rng: &mut impl Rng) -> (Genes, Fitness) {
+/// `search(start, rng)` for each of `starts`, one task per start on `problem`'s
+/// workers, each with its own generator seeded from `rng`.
+fn side_by_side(
+    problem: &Problem,
+    starts: &[Genes],
+    rng: &mut impl Rng,
+    search: impl Fn(&Genes, &mut StdRng) -> (Genes, Fitness) + Sync,
+) -> Vec<(Genes, Fitness)> {
+    let seeded: Vec<(Genes, u64)> = starts.iter().map(|g| (*g, rng.random())).collect();
+    let mut out = vec![(Genes::default(), Fitness::default()); seeded.len()];
+    problem.workers.each(&seeded, &mut out, |(g, seed)| {
+        search(g, &mut StdRng::seed_from_u64(*seed))
+    });
+    out
+}
+
+/// How many of the coarse results are refined on level 0.
+const FINALISTS: usize = 6;
+
+/// `start` after one-sided resizes and CMA-ES on `level`.
+fn coarse(problem: &Problem, start: Genes, level: usize, evaluations: usize, rng: &mut impl Rng) -> (Genes, Fitness) {
     let start = best_of(problem, level, edge_variants(problem, &start));
-    let (g, _) = super::cmaes::maximise(problem, level, start, 3.0 * SIGMA, evaluations, rng);
-    let (g, _) = super::cmaes::maximise(problem, 0, g, SIGMA, evaluations, rng);
+    super::cmaes::maximise(problem, level, start, 3.0 * SIGMA, evaluations, rng)
+}
+
+/// `start` after CMA-ES, one-sided resizes and CMA-ES again on level 0, then the
+/// compass search, and again from the best of a wide sweep of sizes if that is better.
+fn fine(problem: &Problem, start: Genes, evaluations: usize, rng: &mut impl Rng) -> (Genes, Fitness) {
+    let (g, _) = super::cmaes::maximise(problem, 0, start, SIGMA, evaluations, rng);
     let g = best_of(problem, 0, edge_variants(problem, &g));
     let (g, _) = super::cmaes::maximise(problem, 0, g, SIGMA / 2.0, evaluations / 2, rng);
-    super::compass::climb(problem, 0, g, evaluations / 2)
+    let (g, fit) = super::compass::climb(problem, 0, g, evaluations);
+    match super::compass::sweep_sizes(problem, 0, g) {
+        (swept, true) => super::compass::climb(problem, 0, swept, evaluations / 2),
+        _ => (g, fit),
+    }
 }
 
 /// The best of `candidates` on `level` (the first of equals).

@@ -36,6 +36,7 @@ impl BrightnessPyramid {
 /// The texture terms as the search uses them: which pyramid, which model points per
 /// level (a thinned set: the terms cost more per point than the colour test), and how
 /// much they weigh against the colour score.
+#[derive(Clone, Copy)]
 pub struct TextureTerm<'a> {
     /// The frame's brightness.
     pub pyramid: &'a BrightnessPyramid,
