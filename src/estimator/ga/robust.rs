@@ -344,6 +344,7 @@ impl<'p, 'a> Search<'p, 'a> {
                 });
             }
             progress(self.generation);
+            self.problem.observe(self.generation, level, || self.best());
         }
     }
 
