@@ -35,6 +35,8 @@ pub struct Options {
     pub seconds: f64,
 }
 
+/// The shortest wait for a pose (a zero timeout is not a poll to every listener).
+const MIN_WAIT: Duration = Duration::from_millis(1);
 /// Positions kept in each trajectory line.
 const TRAIL: usize = 600;
 /// The estimated trajectory's colour (the truth's is [`TRUTH_COLOUR`]).
@@ -103,16 +105,18 @@ pub fn run(
         counts: Counts::default(),
     };
     let period = Duration::from_secs_f64(1.0 / options.rate_hz);
-    let (start, mut drawn) = (Instant::now(), None::<Instant>);
-    // Without an estimator no pose wakes it: then it wakes once a period.
-    while ipc.wait_for(&wake, period) {
+    let start = Instant::now();
+    let mut due = start;
+    // Without an estimator no pose wakes it: then it wakes when the next image is due.
+    while ipc.wait_for(&wake, due.saturating_duration_since(Instant::now()).max(MIN_WAIT)) {
         if options.seconds > 0.0 && start.elapsed().as_secs_f64() >= options.seconds {
             break;
         }
         live.poses(&truths, Kind::Truth)?;
         live.poses(&poses, Kind::Estimate)?;
-        if drawn.is_none_or(|t| t.elapsed() >= period) {
-            drawn = Some(Instant::now());
+        let now = Instant::now();
+        if now >= due {
+            due = (due + period).max(now);
             live.frame(&frames)?;
             live.draw_newest()?;
         }
