@@ -8,7 +8,8 @@
 //! (pose client and servo law). Below them sit [`camera`] geometry (calibration,
 //! intrinsics, the stereo rig) and [`vision`] (colour, frames, lookup images). [`render`]
 //! is the synthetic camera, [`detect`] finds the object in the photo, [`config`]
-//! assembles each domain's settings, and [`cli`] holds the `photopose` commands.
+//! assembles each domain's settings, [`cli`] holds the `photopose` commands, and
+//! [`viewer`] logs what the tracker sees to Rerun.
 
 pub mod camera;
 pub mod capture;
@@ -19,4 +20,5 @@ pub mod detect;
 pub mod estimator;
 pub mod render;
 pub mod transport;
+pub mod viewer;
 pub mod vision;

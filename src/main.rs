@@ -36,6 +36,9 @@ enum Command {
     Bench(cli::bench::BenchArgs),
     /// Measure transport, estimation and end-to-end latency of the running service.
     Latency(cli::latency::LatencyArgs),
+    /// Log frames, poses and truth of the running service to Rerun (file or viewer).
+    #[cfg(feature = "rerun")]
+    Viewer(cli::viewer::ViewerArgs),
 }
 
 fn main() -> ExitCode {
@@ -56,6 +59,8 @@ fn main() -> ExitCode {
         Command::Demo(a) => cli::demo::run(a),
         Command::Bench(a) => cli::bench::run(a),
         Command::Latency(a) => cli::latency::run(a),
+        #[cfg(feature = "rerun")]
+        Command::Viewer(a) => cli::viewer::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,7 +2,8 @@
 //! of the scene's photo, starts `capture` (a card moving along a loop), `estimator` and
 //! `controller` as three processes, watches `photopose/poses` against
 //! `photopose/truth` with a live status line, then stops them and prints a summary and
-//! writes a plot of the true and estimated trajectories.
+//! writes a plot of the true and estimated trajectories. With `--rerun FILE.rrd` a fourth
+//! process, `photopose viewer`, records the run.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, IsTerminal};
@@ -43,6 +44,10 @@ pub struct DemoArgs {
     /// Configuration file passed to every process; built-in defaults otherwise.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
+    /// Also run `photopose viewer` and record the run into this Rerun file (feature
+    /// `rerun`).
+    #[arg(long, value_name = "FILE.rrd")]
+    pub rerun: Option<PathBuf>,
 }
 
 /// Runs the demo: the photo-model, the three processes, the live status, then the
@@ -50,6 +55,9 @@ pub struct DemoArgs {
 pub fn run(args: &DemoArgs) -> Result<()> {
     if !(args.seconds.is_finite() && args.seconds > 0.0) {
         return Err(anyhow!("--seconds {} must be a positive number", args.seconds));
+    }
+    if args.rerun.is_some() && !cfg!(feature = "rerun") {
+        return Err(crate::viewer::unavailable("--rerun"));
     }
     let config = Config::load(args.config.as_deref())?;
     let spec = SceneSpec::load(&args.scene)?;
@@ -92,6 +100,11 @@ fn start_processes(args: &DemoArgs, model_path: &Path) -> Result<(Processes, Opt
     let model = model_path.display().to_string();
     let estimator: &[&str] = &["--model", &model, "--seconds", &limit];
     procs.spawn(&exe, "estimator", &[estimator], &common, false)?;
+    if let Some(rrd) = &args.rerun {
+        let rrd = rrd.display().to_string();
+        let viewer: &[&str] = &["--save", &rrd, "--model", &model, "--seconds", &limit];
+        procs.spawn(&exe, "viewer", &[viewer], &common, false)?;
+    }
     let scene = format!("synthetic:{}", args.scene.display());
     let (speed, fps) = (args.speed.to_string(), args.fps.to_string());
     let capture: &[&str] = &[

@@ -42,10 +42,17 @@ pub struct EstimateArgs {
     /// Write a side-by-side picture with the best model projected on both eyes.
     #[arg(long)]
     pub overlay: Option<PathBuf>,
+    /// Record the search in Rerun: the best individual of every generation and the
+    /// pyramid levels (feature `rerun`).
+    #[arg(long, value_name = "FILE.rrd")]
+    pub rerun: Option<PathBuf>,
 }
 
 /// Runs one estimate and prints (or writes) its result.
 pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
+    if args.rerun.is_some() && !cfg!(feature = "rerun") {
+        return Err(crate::viewer::unavailable("--rerun"));
+    }
     let config = Config::load(args.config.as_deref())?;
     let model = PhotoModel::load(&args.model)?;
     let images = match (&args.sbs, &args.left, &args.right) {
@@ -65,9 +72,13 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         (None, None) => String::new(),
     };
     let prepared = Prepared::new(&model, &images, &config).with_context(|| format!("frame {frame}"))?;
-    let outcome = oneshot::search(&prepared, &config, generations, seed, &mut |g| {
-        bar.set_position(g as u64)
-    });
+    let progress = &mut |g: usize| bar.set_position(g as u64);
+    let outcome = match &args.rerun {
+        #[cfg(feature = "rerun")]
+        Some(path) => logged_search(path, &model, &images, &prepared, &config, generations, seed, progress)?,
+        // Without the feature `--rerun` was refused above.
+        _ => oneshot::search(&prepared, &config, generations, seed, progress),
+    };
     bar.finish_and_clear();
     let elapsed = start.elapsed().as_secs_f64();
     print!("{}", oneshot::table(&model, &outcome));
@@ -106,4 +117,34 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// [`oneshot::search`] recorded generation by generation into the Rerun file `path`.
+#[cfg(feature = "rerun")]
+#[allow(clippy::too_many_arguments)]
+fn logged_search(
+    path: &std::path::Path,
+    model: &PhotoModel,
+    images: &StereoImages,
+    prepared: &Prepared,
+    config: &Config,
+    generations: usize,
+    seed: u64,
+    progress: &mut dyn FnMut(usize),
+) -> anyhow::Result<crate::estimator::ga::Outcome> {
+    use crate::viewer::search::SearchLog;
+    use crate::viewer::sink::{finish, Sink};
+    let rec = Sink::Save(path.to_path_buf()).open("photopose-estimate")?;
+    let rigs = prepared.levels.iter().map(|l| l.rig.clone()).collect();
+    let log = SearchLog::new(&rec, model, &config.left_from_hand, images, rigs)?;
+    let observer = |g: &crate::estimator::ga::observe::Generation| {
+        if let Err(e) = log.generation(g) {
+            tracing::warn!("rerun: generation {}: {e:#}", g.generation);
+        }
+    };
+    let outcome = oneshot::search_observed(prepared, config, generations, seed, progress, Some(&observer));
+    log.result(&outcome.best, outcome.fitness.f, outcome.generations)?;
+    finish(&rec);
+    println!("wrote {}", path.display());
+    Ok(outcome)
 }

@@ -11,6 +11,8 @@ pub mod model;
 pub mod render;
 pub mod report;
 pub mod skips;
+#[cfg(feature = "rerun")]
+pub mod viewer;
 
 use std::io::IsTerminal;
 

@@ -147,7 +147,20 @@ pub fn search(
     seed: u64,
     progress: &mut dyn FnMut(usize),
 ) -> Outcome {
-    let problem = prepared.problem(config);
+    search_observed(prepared, config, generations, seed, progress, None)
+}
+
+/// [`search`], telling `observer` each generation's best individual (`estimate --rerun`).
+pub fn search_observed(
+    prepared: &Prepared,
+    config: &Config,
+    generations: usize,
+    seed: u64,
+    progress: &mut dyn FnMut(usize),
+    observer: Option<ga::observe::Observer<'_>>,
+) -> Outcome {
+    let mut problem = prepared.problem(config);
+    problem.observer = observer;
     let mut outcome = match prepared.mode {
         Mode::Paper => ga::paper::run(&problem, &config.ga, generations, seed, progress),
         Mode::Robust => ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress),

@@ -8,6 +8,7 @@
 pub mod cmaes;
 pub mod compass;
 pub mod live;
+pub mod observe;
 pub mod paper;
 pub mod polish;
 pub mod robust;
@@ -126,6 +127,8 @@ pub struct Problem<'a> {
     pub workers: Workers,
     /// The texture terms, where the frame has them (robust mode).
     pub texture: Option<TextureTerm<'a>>,
+    /// Told each generation's best individual, when set (see [`observe`]).
+    pub observer: Option<observe::Observer<'a>>,
 }
 
 impl<'a> Problem<'a> {
@@ -144,6 +147,7 @@ impl<'a> Problem<'a> {
             bounds,
             workers: Workers::new(threads),
             texture: None,
+            observer: None,
         }
     }
 

@@ -100,6 +100,7 @@ pub fn run(
             });
         }
         progress(generation);
+        problem.observe(generation, 0, || genes(&pop[best_index(&fit, Ties::Last)]));
     }
     let best = best_index(&fit, Ties::Last);
     Outcome {

@@ -335,6 +335,7 @@ impl<'p, 'a> Search<'p, 'a> {
                 });
             }
             progress(self.generation);
+            self.problem.observe(self.generation, level, || self.best());
         }
     }
 
