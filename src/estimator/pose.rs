@@ -92,6 +92,15 @@ impl PoseSize {
         }
     }
 
+    /// This pose with its length and width times `factor` (the same apparent aspect),
+    /// centre and orientation unchanged.
+    pub fn scaled(&self, factor: f64) -> Self {
+        Self {
+            alpha: self.alpha / factor,
+            ..*self
+        }
+    }
+
     /// This pose with its length (`along_length`) or its width times `factor`, for a
     /// `box_px` photo box: about the centre (`side` 0) or with the edge at `-side` of
     /// that axis fixed (`side` ±0.5), the centre moving by `side` times the change.

@@ -55,10 +55,7 @@ const MOVES: [Move; 14] = [
 fn moved(problem: &Problem, p: &PoseSize, m: Move, s: f64) -> PoseSize {
     let box_px = problem.scorer.box_px;
     match m {
-        Move::Scale => PoseSize {
-            alpha: p.alpha / (1.0 + s),
-            ..*p
-        },
+        Move::Scale => p.scaled(1.0 + s),
         Move::Resize(along_length, side) => p.resized(box_px, along_length, 1.0 + s, side),
         Move::Shift(axis) => {
             let length = p.size_mm(box_px[0], box_px[1])[0];

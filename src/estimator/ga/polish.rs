@@ -54,10 +54,7 @@ fn variants(problem: &Problem, g: &Genes) -> Vec<Genes> {
     for roll in ROLLS_DEG {
         let rolled = p.rolled(left_from_hand, roll.to_radians());
         for scale in SCALES {
-            let sized = PoseSize {
-                alpha: rolled.alpha / scale,
-                ..rolled
-            };
+            let sized = rolled.scaled(scale);
             out.push(problem.bounds.encode(&sized));
             for tilt in TILTS_DEG {
                 for a in 0..TILT_AXES {
@@ -85,10 +82,7 @@ fn grown(problem: &Problem, p: &PoseSize) -> Vec<Genes> {
     for factor in GROWTH {
         let reach = (factor - 1.0) / 3.0;
         for (i, j) in (-1..=1).flat_map(|i| (-1..=1).map(move |j| (i, j))) {
-            let mut q = PoseSize {
-                alpha: p.alpha / factor,
-                ..*p
-            };
+            let mut q = p.scaled(factor);
             q.position += p.rotation() * Vector3::new(i as f64 * reach * length, j as f64 * reach * width, 0.0);
             out.push(problem.bounds.encode(&q));
         }
