@@ -92,6 +92,27 @@ impl PoseSize {
         }
     }
 
+    /// The left camera's line of sight to this pose's centre, in the hand frame
+    /// (`left_from_hand` the hand–eye transform); its length is the centre's distance.
+    pub fn sight(&self, left_from_hand: &Isometry3<f64>) -> Vector3<f64> {
+        left_from_hand.inverse_transform_vector(&(left_from_hand * self.hand_from_model()).translation.vector)
+    }
+
+    /// Its one-sided and central resizes ([`PoseSize::resized`]) for a `box_px` photo
+    /// box: the length, then the width, each times every one of `factors`, about either
+    /// edge and the centre.
+    pub fn resizes(&self, box_px: [f64; 2], factors: &[f64]) -> Vec<Self> {
+        let mut out = Vec::with_capacity(6 * factors.len());
+        for along_length in [true, false] {
+            for &factor in factors {
+                for side in [-0.5, 0.0, 0.5] {
+                    out.push(self.resized(box_px, along_length, factor, side));
+                }
+            }
+        }
+        out
+    }
+
     /// This pose with its length and width times `factor` (the same apparent aspect),
     /// centre and orientation unchanged.
     pub fn scaled(&self, factor: f64) -> Self {

@@ -6,7 +6,7 @@
 //! directions, halved when none improves, climb the ridge within a few hundred
 //! evaluations.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 
 use super::{best_index, Genes, Problem, Ties};
 use crate::estimator::fitness::Fitness;
@@ -27,8 +27,8 @@ enum Move {
     Resize(bool, f64),
     /// Along the model's own x or y axis, by the step times its length.
     Shift(Vector3<f64>),
-    /// Along the left camera's line of sight, by the step times a quarter of the depth;
-    /// with `keep_apparent`, the size grows with the depth.
+    /// Along the left camera's line of sight, by the step times a quarter of the
+    /// distance; with `keep_apparent`, the size grows with the distance.
     Sight { keep_apparent: bool },
     /// About the model's own axis.
     Turn(Vector3<f64>),
@@ -65,18 +65,14 @@ fn moved(problem: &Problem, p: &PoseSize, m: Move, s: f64) -> PoseSize {
             }
         }
         Move::Sight { keep_apparent } => {
-            let hand_from_left = problem.scorer.left_from_hand.inverse();
-            let left = problem.scorer.left_from_hand * Point3::from(p.position);
-            let shifted = left + left.coords * (s / 4.0);
-            let alpha = if keep_apparent {
-                p.alpha / (1.0 + s / 4.0)
-            } else {
-                p.alpha
-            };
-            PoseSize {
-                position: (hand_from_left * shifted).coords,
-                alpha,
+            let q = PoseSize {
+                position: p.position + p.sight(&problem.scorer.left_from_hand) * (s / 4.0),
                 ..*p
+            };
+            if keep_apparent {
+                q.scaled(1.0 + s / 4.0)
+            } else {
+                q
             }
         }
         Move::Turn(axis) => p.turned(axis, s * TURN_PER_STEP),
@@ -115,17 +111,17 @@ pub fn climb(problem: &Problem, level: usize, start: Genes, budget: usize) -> (G
 /// margin). Returns the best and whether it is not `start`.
 pub fn sweep_sizes(problem: &Problem, level: usize, start: Genes) -> (Genes, bool) {
     let p = problem.bounds.decode(&start);
-    let box_px = problem.scorer.box_px;
-    let mut candidates = vec![start];
-    for k in (-SWEEP_STEPS..=SWEEP_STEPS).filter(|&k| k != 0) {
-        let factor = SWEEP_RATIO.powi(k);
-        candidates.push(problem.bounds.encode(&moved(problem, &p, Move::Scale, factor - 1.0)));
-        for along_length in [true, false] {
-            for side in [-0.5, 0.0, 0.5] {
-                candidates.push(problem.bounds.encode(&p.resized(box_px, along_length, factor, side)));
-            }
-        }
-    }
+    let factors: Vec<f64> = (-SWEEP_STEPS..=SWEEP_STEPS)
+        .filter(|&k| k != 0)
+        .map(|k| SWEEP_RATIO.powi(k))
+        .collect();
+    let resized = factors
+        .iter()
+        .map(|&f| p.scaled(f))
+        .chain(p.resizes(problem.scorer.box_px, &factors));
+    let candidates: Vec<Genes> = std::iter::once(start)
+        .chain(resized.map(|q| problem.bounds.encode(&q)))
+        .collect();
     let mut fit = vec![Fitness::default(); candidates.len()];
     problem.evaluate_batch(level, &candidates, &mut fit);
     let i = best_index(&fit, Ties::First);

@@ -156,7 +156,6 @@ impl<'a> Problem<'a> {
     pub fn serial(&self) -> Problem<'a> {
         Problem {
             workers: Workers::new(1),
-            texture: self.texture,
             ..*self
         }
     }

@@ -178,20 +178,10 @@ fn best_of(problem: &Problem, level: usize, candidates: Vec<Genes>) -> Genes {
 /// only part of its target, one edge on the target's edge and the other inside, scores
 /// a local peak that a mutation of one gene leaves only by chance.
 fn edge_variants(problem: &Problem, g: &Genes) -> Vec<Genes> {
-    let p = problem.bounds.decode(g);
-    let mut out = vec![*g];
-    for along_length in [true, false] {
-        for factor in EDGE_FACTORS {
-            for side in [-0.5, 0.0, 0.5] {
-                out.push(
-                    problem
-                        .bounds
-                        .encode(&p.resized(problem.scorer.box_px, along_length, factor, side)),
-                );
-            }
-        }
-    }
-    out
+    let resized = problem.bounds.decode(g).resizes(problem.scorer.box_px, &EDGE_FACTORS);
+    std::iter::once(*g)
+        .chain(resized.iter().map(|q| problem.bounds.encode(q)))
+        .collect()
 }
 
 /// Length or width factors of [`edge_variants`].

@@ -104,9 +104,7 @@ pub fn perturbations(p: &PoseSize, left_from_hand: &Isometry3<f64>) -> Vec<PoseS
             out.push(p.tilted(left_from_hand, axis, sign * turn));
         }
     }
-    // The line of sight through the centre, in the hand frame.
-    let sight = left_from_hand.inverse_transform_vector(&(left_from_hand * p.hand_from_model()).translation.vector);
-    let sight = sight.normalize();
+    let sight = p.sight(left_from_hand).normalize();
     for sign in [-1.0, 1.0] {
         out.push(p.rolled(left_from_hand, sign * turn));
         out.push(PoseSize {
