@@ -246,3 +246,26 @@ pub fn pose_msg(model: &PhotoModel, est: &Estimate, frame_id: u64, capture_time_
     pose.sanitize();
     pose
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(args: &[&str]) -> Result<Vec<String>> {
+        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        Ok(parse_models(&args)?.into_iter().map(|(n, _)| n.to_string()).collect())
+    }
+
+    #[test]
+    fn objects_are_named_after_their_files_or_as_given() {
+        assert_eq!(names(&["models/cup.model", "box=b.model"]).unwrap(), ["cup", "box"]);
+        assert_eq!(names(&["a/rocket-v2.model"]).unwrap(), ["rocket_v2"]);
+        let twice = names(&["x/cup.model", "y/cup.model"]).unwrap_err().to_string();
+        assert!(twice.contains("cup is taken") && twice.contains("NAME=PATH"), "{twice}");
+        let bad = names(&["my cup=c.model"]).unwrap_err().to_string();
+        assert!(bad.starts_with("--model my cup=c.model: object name"), "{bad}");
+        let many: Vec<String> = (0..9).map(|i| format!("m{i}.model")).collect();
+        let many: Vec<&str> = many.iter().map(String::as_str).collect();
+        assert!(names(&many).unwrap_err().to_string().contains("at most 8"));
+    }
+}
