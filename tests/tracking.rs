@@ -185,7 +185,7 @@ fn tracking_recovers_the_whole_card_after_the_acquisition_gap() {
         .map(|_| {
             let mut buf = vec![0u8; g.frame_len()];
             let info = camera.fill(&mut buf).expect("render").expect("a frame");
-            (buf, info.truth.expect("synthetic truth"))
+            (buf, info.truth[0].expect("synthetic truth"))
         })
         .collect();
     let mut summary: Vec<String> = Vec::new();

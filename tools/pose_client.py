@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Subscribe to photopose poses over iceoryx2 shared memory, from Python.
 
-photopose publishes one ``PoseMsg`` per processed frame on ``photopose/poses`` (and the
-ground truth of synthetic frames on ``photopose/truth``, same type). This client needs
-no Rust, only the iceoryx2 Python bindings of the same version as the service::
+photopose publishes one ``PoseSet`` per processed frame on ``photopose/poses``: the pose
+of every tracked object, each named (and the ground truth of synthetic frames on
+``photopose/truth``, same type). This client needs no Rust, only the iceoryx2 Python
+bindings of the same version as the service::
 
     pip install iceoryx2==0.10.0
 
@@ -12,21 +13,25 @@ Usage::
     python3 tools/pose_client.py                          # poses, one readable line each
     python3 tools/pose_client.py --service photopose/truth --count 10
     python3 tools/pose_client.py --json --seconds 5       # one JSON object per line
+    python3 tools/pose_client.py --object cup             # one object's poses only
 
 Options: ``--service NAME`` (default ``photopose/poses``), ``--count N`` (exit after N
 poses; exit status 1 if ``--seconds`` ran out first), ``--seconds S`` (exit after S
-seconds), ``--json``. Ctrl-C or SIGTERM ends it cleanly. The client may start before or
+seconds), ``--object NAME``, ``--json``. Ctrl-C or SIGTERM ends it cleanly. The client may start before or
 after the publisher.
 
 As a library (copies of the messages, shared memory released at once)::
 
     from pose_client import subscribe
     for pose in subscribe("photopose/poses"):
-        print(pose.frame_id, pose.position(), pose.status_name)
+        print(pose.object, pose.frame_id, pose.position(), pose.status_name)
 
-The payload is the C struct below (DESIGN section 4, iceoryx2 type name
-``PhotoposePose``, no user header): 112 bytes, alignment 8. A C++ client declares a
-standard-layout struct with the same fields and the same type name.
+The payload is the C struct ``PoseSet`` below (version 2 of the contract, iceoryx2 type
+name ``PhotoposePoseV2``, no user header): 1160 bytes, alignment 8: ``count`` (u32),
+``reserved`` (u32), then 8 ``ObjectPose`` of 144 bytes each, a NUL-padded name of 32
+bytes and the 112-byte ``PoseMsg`` of version 1. A C++ client declares standard-layout
+structs with the same fields and the same type name. A client still built for version 1
+(``PhotoposePose``) is refused by iceoryx2 with an incompatible-types error.
 """
 
 from __future__ import annotations
@@ -78,11 +83,6 @@ class PoseMsg(ctypes.Structure):
         ("status", ctypes.c_uint32),  # 0 tracking, 1 searching, 2 lost
     ]
 
-    @staticmethod
-    def type_name() -> str:
-        """The iceoryx2 type name (iceoryx2.get_type_name calls this)."""
-        return "PhotoposePose"
-
     def position(self) -> list[float]:
         return list(self.position_mm)
 
@@ -105,6 +105,7 @@ class PoseMsg(ctypes.Structure):
     def to_dict(self) -> dict:
         """The fields as plain Python values (floats round-trip exactly through JSON)."""
         return {
+            "object": getattr(self, "object", ""),
             "frame_id": self.frame_id,
             "capture_time_ns": self.capture_time_ns,
             "publish_time_ns": self.publish_time_ns,
@@ -115,6 +116,44 @@ class PoseMsg(ctypes.Structure):
             "generations": self.generations,
             "status": self.status,
         }
+
+
+MAX_OBJECTS = 8
+NAME_LEN = 32
+
+
+class ObjectPose(ctypes.Structure):
+    """One object's pose in a PoseSet: its NUL-padded name and its PoseMsg."""
+
+    _fields_ = [("name", ctypes.c_uint8 * NAME_LEN), ("pose", PoseMsg)]
+
+    def object_name(self) -> str:
+        raw = bytes(self.name).split(b"\0", 1)[0]
+        return raw.decode("utf-8", errors="replace")
+
+
+class PoseSet(ctypes.Structure):
+    """The poses of every object in one frame (``objects[:count]``)."""
+
+    _fields_ = [
+        ("count", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
+        ("objects", ObjectPose * MAX_OBJECTS),
+    ]
+
+    @staticmethod
+    def type_name() -> str:
+        """The iceoryx2 type name (iceoryx2.get_type_name calls this)."""
+        return "PhotoposePoseV2"
+
+    def poses(self) -> list[PoseMsg]:
+        """Copies of the objects' poses, each with its name as ``.object``."""
+        out = []
+        for o in self.objects[: min(self.count, MAX_OBJECTS)]:
+            pose = PoseMsg.from_buffer_copy(o.pose)
+            pose.object = o.object_name()
+            out.append(pose)
+        return out
 
 
 def _check_layout() -> None:
@@ -136,6 +175,9 @@ def _check_layout() -> None:
             f"PoseMsg layout: size {ctypes.sizeof(PoseMsg)}, align "
             f"{ctypes.alignment(PoseMsg)}, offsets {offsets}; the contract is 112, 8, {expected}"
         )
+    set_layout = (ctypes.sizeof(ObjectPose), ObjectPose.pose.offset, ctypes.sizeof(PoseSet), PoseSet.objects.offset)
+    if set_layout != (144, 32, 1160, 8) or ctypes.alignment(PoseSet) != 8:
+        raise AssertionError(f"PoseSet layout {set_layout}; the contract is (144, 32, 1160, 8)")
 
 
 _check_layout()
@@ -148,7 +190,8 @@ class ClientError(RuntimeError):
 class PoseSubscriber:
     """An iceoryx2 node with one subscriber to a pose service.
 
-    ``receive()`` returns a copy of the oldest pose not yet received, or None;
+    ``receive()`` returns copies of the poses of the oldest set not yet received (a list,
+    one per object), or None;
     ``wait(seconds)`` sleeps and returns False once the process was asked to terminate
     (SIGINT, SIGTERM); ``poses()`` iterates. Use as a context manager, or call ``close()``.
     """
@@ -175,7 +218,7 @@ class PoseSubscriber:
         try:
             self._service = (
                 self._node.service_builder(iox2.ServiceName.new(service))
-                .publish_subscribe(PoseMsg)  # type name, size 112, alignment 8; header ()
+                .publish_subscribe(PoseSet)  # type name, size 1160, alignment 8; header ()
                 .subscriber_max_buffer_size(SUBSCRIBER_MAX_BUFFER_SIZE)
                 .history_size(HISTORY_SIZE)
                 .enable_safe_overflow(ENABLE_SAFE_OVERFLOW)
@@ -188,14 +231,14 @@ class PoseSubscriber:
             self.close()
             raise ClientError(f"cannot open {service}: {e!r}") from e
 
-    def receive(self) -> Optional[PoseMsg]:
+    def receive(self) -> Optional[list[PoseMsg]]:
         sample = self._subscriber.receive()
         if sample is None:
             return None
-        pose = PoseMsg()
-        ctypes.memmove(ctypes.addressof(pose), sample.payload_ptr, ctypes.sizeof(PoseMsg))
+        poses = PoseSet()
+        ctypes.memmove(ctypes.addressof(poses), sample.payload_ptr, ctypes.sizeof(PoseSet))
         sample.delete()  # give the shared-memory slot back at once
-        return pose
+        return poses.poses()
 
     def wait(self, seconds: float) -> bool:
         try:
@@ -205,15 +248,15 @@ class PoseSubscriber:
             return False
 
     def poses(self, seconds: Optional[float] = None, poll_seconds: float = 0.002) -> Iterator[PoseMsg]:
-        """Yields poses until ``seconds`` have passed (forever if None) or the process is
-        asked to terminate (then ``terminated`` is True). The publisher does not signal new
-        samples, so this polls every ``poll_seconds``.
+        """Yields poses (each object's, in set order) until ``seconds`` have passed (forever
+        if None) or the process is asked to terminate (then ``terminated`` is True). The
+        publisher does not signal new samples, so this polls every ``poll_seconds``.
         """
         deadline = None if seconds is None else time.monotonic() + seconds
         while deadline is None or time.monotonic() < deadline:
-            pose = self.receive()
-            if pose is not None:
-                yield pose
+            poses = self.receive()
+            if poses is not None:
+                yield from poses
                 continue
             timeout = poll_seconds
             if deadline is not None:
@@ -255,7 +298,7 @@ def format_line(pose: PoseMsg, now_ns: int) -> str:
     w, qx, qy, qz = pose.orientation_wxyz
     length, breadth = pose.size_mm
     return (
-        f"frame {pose.frame_id:6d} {pose.status_name:9s} "
+        f"{getattr(pose, 'object', ''):10s} frame {pose.frame_id:6d} {pose.status_name:9s} "
         f"pos [{x:8.2f} {y:8.2f} {z:8.2f}] mm  "
         f"q [{w:7.4f} {qx:7.4f} {qy:7.4f} {qz:7.4f}]  "
         f"size {length:6.1f} x {breadth:6.1f} mm  "
@@ -293,6 +336,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     parser.add_argument("--service", default=POSES_SERVICE, help=f"default {POSES_SERVICE}")
     parser.add_argument("--count", type=int, help="exit after N poses")
     parser.add_argument("--seconds", type=float, help="exit after S seconds")
+    parser.add_argument("--object", help="only the poses of the object of this name")
     parser.add_argument("--json", action="store_true", help="one JSON object per line")
     args = parser.parse_args(argv)
     if args.count is not None and args.count < 1:
@@ -311,6 +355,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     try:
         with PoseSubscriber(args.service) as sub:
             for pose in sub.poses(args.seconds):
+                if args.object is not None and pose.object != args.object:
+                    continue
                 now_ns = time.clock_gettime_ns(time.CLOCK_MONOTONIC)
                 sys.stdout.write(fmt(pose, now_ns) + "\n")
                 sys.stdout.flush()

@@ -23,7 +23,7 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 
 use crate::estimator::pose::PoseSize;
-use crate::transport::messages::{PoseMsg, Status};
+use crate::transport::messages::{ObjectName, PoseMsg, PoseSet, Status, MAX_OBJECTS};
 use crate::vision::PixelFormat;
 
 pub use frame_buf::{FrameBuf, Written};
@@ -142,9 +142,37 @@ impl Truth {
 pub struct FrameInfo {
     /// CLOCK_MONOTONIC when the frame was taken, ns.
     pub capture_time_ns: u64,
-    /// The target's true pose and size in this frame, when the source knows it.
-    pub truth: Option<Truth>,
+    /// The true pose and size of each object of [`FrameSource::objects`] in this frame,
+    /// where the source knows it (the first is the one a recording keeps).
+    pub truth: [Option<Truth>; MAX_OBJECTS],
 }
+
+impl FrameInfo {
+    /// A frame taken at `capture_time_ns` with (at most) one object's truth.
+    pub fn single(capture_time_ns: u64, truth: Option<Truth>) -> Self {
+        let mut all = [None; MAX_OBJECTS];
+        all[0] = truth;
+        Self {
+            capture_time_ns,
+            truth: all,
+        }
+    }
+
+    /// The known truths as the pose set of frame `frame_id`, named after `names`.
+    pub fn truth_set(&self, names: &[ObjectName], frame_id: u64) -> PoseSet {
+        let mut set = PoseSet::default();
+        for (name, truth) in names.iter().zip(&self.truth) {
+            if let Some(t) = truth {
+                // Cannot fail: `truth` has no more entries than a set has room for.
+                let _ = set.push(name, t.pose_msg(frame_id, self.capture_time_ns));
+            }
+        }
+        set
+    }
+}
+
+/// The name of a source's only object when it has no better one (replays, cameras).
+pub const TARGET: &str = "target";
 
 /// A camera-like source of side-by-side frames.
 pub trait FrameSource {
@@ -153,6 +181,11 @@ pub trait FrameSource {
 
     /// One line for logs: what is being captured.
     fn describe(&self) -> String;
+
+    /// The names of the objects whose truth [`FrameInfo::truth`] carries, in its order.
+    fn objects(&self) -> Vec<ObjectName> {
+        vec![ObjectName::from_stem(TARGET)]
+    }
 
     /// When the next frame is due; `None` once the stream has ended.
     fn next_due(&mut self) -> Option<Instant>;

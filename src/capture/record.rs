@@ -82,7 +82,7 @@ impl Recorder {
                         frame_id: job.frame_id,
                         capture_time_ns: job.info.capture_time_ns,
                         file,
-                        truth: job.info.truth,
+                        truth: job.info.truth[0],
                     };
                     csv.write(&rec).map_err(write_error(&csv_path))?;
                     written += 1;

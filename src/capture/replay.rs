@@ -166,10 +166,7 @@ impl FrameSource for ReplaySource {
         // The reader may be gone after the last frame; the buffer is then not needed.
         let _ = self.recycle.send(bytes);
         self.played += 1;
-        let info = FrameInfo {
-            capture_time_ns: monotonic_ns(),
-            truth: self.truth[index],
-        };
+        let info = FrameInfo::single(monotonic_ns(), self.truth[index]);
         Ok(Some((info, frame)))
     }
 }

@@ -1,8 +1,9 @@
-//! `synthetic[:SCENE.toml]`: the synthetic camera. The scene's card moves along a
-//! scripted [`Trajectory`] at the camera's rate and resolution; each frame is rendered
-//! straight into the caller's buffer and comes with its ground truth.
+//! `synthetic[:SCENE.toml]`: the synthetic camera. The scene's card (and the cards of
+//! further scene files, `capture --card`) move along scripted [`Trajectory`] loops at
+//! the camera's rate and resolution; each frame is rendered straight into the caller's
+//! buffer and comes with every card's ground truth.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -10,7 +11,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use super::{FrameBuf, FrameInfo, FrameSource, Geometry, SourceError, Truth, Written};
 use crate::config::Config;
 use crate::render::{Renderer, Scene, SceneSpec};
-use crate::transport::messages::monotonic_ns;
+use crate::transport::messages::{monotonic_ns, ObjectName, MAX_OBJECTS};
 use crate::vision::PixelFormat;
 
 /// A smooth closed loop around the scene's pose, in the hand frame: a Lissajous figure
@@ -78,37 +79,80 @@ impl Trajectory {
     }
 }
 
-/// The synthetic camera as a frame source.
-pub struct SyntheticSource {
-    scene_path: String,
+/// One card of the synthetic camera: its scene (the first card's wall), the renderer
+/// of that scene, its motion and its name.
+struct Moving {
+    name: ObjectName,
     scene: Scene,
     renderer: Renderer,
     trajectory: Trajectory,
+}
+
+/// Each further card's loop is this much slower than the previous one's, so the cards
+/// move independently.
+const FURTHER_CARD_SLOWER: f64 = 0.77;
+
+/// The synthetic camera as a frame source.
+pub struct SyntheticSource {
+    scene_path: String,
+    /// The first card (its scene holds the wall) and any further ones.
+    cards: Vec<Moving>,
     geometry: Geometry,
     fps: f64,
     start: Instant,
-    /// Frames rendered so far; frame `n` shows the card at `n / fps` seconds.
+    /// Frames rendered so far; frame `n` shows the cards at `n / fps` seconds.
     frames: u64,
 }
 
 impl SyntheticSource {
     /// The scene file's card moving at up to `speed_mm_s`, `fps` frames per second.
     pub fn open(scene_path: &Path, config: &Config, fps: f64, speed_mm_s: f64) -> Result<Self, SourceError> {
-        let spec = SceneSpec::load(scene_path).map_err(|e| SourceError::Setup(e.to_string()))?;
-        let rig = config
-            .calibration
-            .rig(spec.resolution)
-            .map_err(|e| SourceError::Setup(e.to_string()))?;
-        let scene = spec
-            .build(&config.left_from_hand)
-            .map_err(|e| SourceError::Setup(e.to_string()))?;
-        let trajectory = Trajectory::with_peak_speed(scene.card.hand_from_model, speed_mm_s);
-        let renderer = Renderer::new(&rig, &config.left_from_hand, &scene);
+        Self::with_cards(scene_path, &[], config, fps, speed_mm_s)
+    }
+
+    /// [`SyntheticSource::open`] with the cards of further scene files in front of the
+    /// first one's wall (their photo, box, pose and size; their walls are not used),
+    /// each on a loop of its own. Cards must not overlap in the images: each is
+    /// rendered over the wall alone.
+    pub fn with_cards(
+        scene_path: &Path,
+        more: &[PathBuf],
+        config: &Config,
+        fps: f64,
+        speed_mm_s: f64,
+    ) -> Result<Self, SourceError> {
+        let setup = |e: &dyn std::fmt::Display| SourceError::Setup(e.to_string());
+        let spec = SceneSpec::load(scene_path).map_err(|e| setup(&e))?;
+        let rig = config.calibration.rig(spec.resolution).map_err(|e| setup(&e))?;
+        let first = spec.build(&config.left_from_hand).map_err(|e| setup(&e))?;
+        let mut cards = Vec::new();
+        for (k, path) in std::iter::once(scene_path)
+            .chain(more.iter().map(PathBuf::as_path))
+            .enumerate()
+        {
+            let card_spec = SceneSpec::load(path).map_err(|e| setup(&e))?;
+            let mut scene = first.clone();
+            if k > 0 {
+                scene.card = card_spec.build(&config.left_from_hand).map_err(|e| setup(&e))?.card;
+                scene.occluder = None;
+            }
+            let speed = speed_mm_s * FURTHER_CARD_SLOWER.powi(k as i32);
+            cards.push(Moving {
+                name: card_name(&card_spec.photo, k, &cards),
+                renderer: Renderer::new(&rig, &config.left_from_hand, &scene),
+                trajectory: Trajectory::with_peak_speed(scene.card.hand_from_model, speed),
+                scene,
+            });
+        }
+        if cards.len() > MAX_OBJECTS {
+            return Err(SourceError::Setup(format!(
+                "{} cards: a pose set carries at most {MAX_OBJECTS}",
+                cards.len()
+            )));
+        }
         Ok(Self {
             scene_path: scene_path.display().to_string(),
-            scene,
-            renderer,
-            trajectory,
+            cards,
             geometry: Geometry {
                 width: rig.width,
                 height: rig.height,
@@ -120,10 +164,20 @@ impl SyntheticSource {
         })
     }
 
-    /// The card's motion.
+    /// The first card's motion.
     pub fn trajectory(&self) -> &Trajectory {
-        &self.trajectory
+        &self.cards[0].trajectory
     }
+}
+
+/// A card's name: its photo's file stem, with `_2`, `_3` … for repeats of a photo.
+fn card_name(photo: &Path, index: usize, before: &[Moving]) -> ObjectName {
+    let stem = photo.file_stem().map(|s| s.to_string_lossy()).unwrap_or_default();
+    let name = ObjectName::from_stem(&stem);
+    if before.iter().any(|c| c.name == name) {
+        return ObjectName::from_stem(&format!("{}_{}", &stem[..stem.len().min(28)], index + 1));
+    }
+    name
 }
 
 impl FrameSource for SyntheticSource {
@@ -132,10 +186,23 @@ impl FrameSource for SyntheticSource {
     }
 
     fn describe(&self) -> String {
+        let loops: Vec<String> = self
+            .cards
+            .iter()
+            .map(|c| format!("{} on a loop of {:.1} s", c.name, c.trajectory.period_s))
+            .collect();
         format!(
-            "synthetic camera on {} at {} fps, {}x{} per eye, card loop of {:.1} s",
-            self.scene_path, self.fps, self.geometry.width, self.geometry.height, self.trajectory.period_s
+            "synthetic camera on {} at {} fps, {}x{} per eye: {}",
+            self.scene_path,
+            self.fps,
+            self.geometry.width,
+            self.geometry.height,
+            loops.join(", ")
         )
+    }
+
+    fn objects(&self) -> Vec<ObjectName> {
+        self.cards.iter().map(|c| c.name.clone()).collect()
     }
 
     fn next_due(&mut self) -> Option<Instant> {
@@ -146,19 +213,24 @@ impl FrameSource for SyntheticSource {
     }
 
     fn write_frame<'a>(&mut self, buf: FrameBuf<'a>) -> Result<Option<(FrameInfo, Written<'a>)>, SourceError> {
-        let pose = self.trajectory.pose_at(self.frames as f64 / self.fps);
-        self.scene.card.hand_from_model = pose;
-        // The empty scene is copied in whole, then the card is rendered over it: every
+        let t = self.frames as f64 / self.fps;
+        // The empty scene is copied in whole, then each card is rendered over it: every
         // byte of the (possibly uninitialised) buffer is written once, none zeroed.
-        let mut frame = buf.copy_from(self.renderer.background())?;
-        self.renderer.render_over(&self.scene, frame.bytes_mut());
+        let mut frame = buf.copy_from(self.cards[0].renderer.background())?;
+        let mut truth = [None; MAX_OBJECTS];
+        for (card, slot) in self.cards.iter_mut().zip(&mut truth) {
+            let pose = card.trajectory.pose_at(t);
+            card.scene.card.hand_from_model = pose;
+            card.renderer.render_over(&card.scene, frame.bytes_mut());
+            *slot = Some(Truth {
+                hand_from_model: pose,
+                size_mm: card.scene.card.size_mm,
+            });
+        }
         self.frames += 1;
         let info = FrameInfo {
             capture_time_ns: monotonic_ns(),
-            truth: Some(Truth {
-                hand_from_model: pose,
-                size_mm: self.scene.card.size_mm,
-            }),
+            truth,
         };
         Ok(Some((info, frame)))
     }

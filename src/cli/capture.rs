@@ -15,8 +15,8 @@ use crate::capture::replay::ReplaySource;
 use crate::capture::synthetic::SyntheticSource;
 use crate::capture::{FrameSource, Geometry, Source};
 use crate::config::Config;
-use crate::transport::ipc::{send_pose, wake_up, FramePublisher, Ipc, PosePublisher, Waker};
-use crate::transport::messages::{monotonic_ns, FrameHeader, FRAMES_SERVICE, TRUTH_SERVICE};
+use crate::transport::ipc::{send_poses, wake_up, FramePublisher, Ipc, PosePublisher, Waker};
+use crate::transport::messages::{monotonic_ns, FrameHeader, ObjectName, FRAMES_SERVICE, TRUTH_SERVICE};
 
 /// Publish stereo frames.
 #[derive(clap::Args, Debug)]
@@ -39,6 +39,10 @@ pub struct CaptureArgs {
     /// Peak speed of the synthetic card, mm/s.
     #[arg(long, default_value_t = 150.0)]
     pub speed: f64,
+    /// Synthetic: also show the card of this scene file (its photo, box, pose and size),
+    /// on a loop of its own; repeatable. Cards must not overlap in the images.
+    #[arg(long = "card", value_name = "SCENE.toml")]
+    pub cards: Vec<PathBuf>,
     /// Replay: start again after the last frame.
     #[arg(long = "loop")]
     pub looping: bool,
@@ -75,6 +79,7 @@ pub fn run(args: &CaptureArgs) -> Result<()> {
         frames: ipc.frame_publisher(geometry.frame_len())?,
         waker: ipc.waker(FRAMES_SERVICE)?,
         truth: ipc.pose_publisher(TRUTH_SERVICE)?,
+        objects: source.objects(),
         recorder: recorder.as_mut(),
     };
     tracing::info!("capture: {}", source.describe());
@@ -104,6 +109,9 @@ fn check_args(args: &CaptureArgs) -> Result<()> {
     if !zed && (args.resolution.is_some() || args.device.is_some()) {
         bail!("--resolution and --device apply to --source zed only");
     }
+    if !args.cards.is_empty() && !matches!(Source::parse(&args.source)?, Source::Synthetic(_)) {
+        bail!("--card applies to the synthetic camera only");
+    }
     Ok(())
 }
 
@@ -112,7 +120,8 @@ fn open_source(args: &CaptureArgs, config: &Config) -> Result<(Box<dyn FrameSour
     Ok(match Source::parse(&args.source)? {
         Source::Synthetic(scene) => {
             let fps = args.fps.unwrap_or(DEFAULT_FPS);
-            (Box::new(SyntheticSource::open(&scene, config, fps, args.speed)?), None)
+            let source = SyntheticSource::with_cards(&scene, &args.cards, config, fps, args.speed)?;
+            (Box::new(source), None)
         }
         Source::Replay(dir) => (Box::new(ReplaySource::open(&dir, args.fps, args.looping)?), None),
         Source::Zed => {
@@ -140,6 +149,8 @@ struct Outlets<'r> {
     frames: FramePublisher,
     waker: Waker,
     truth: PosePublisher,
+    /// The names of the source's objects, for their truth.
+    objects: Vec<ObjectName>,
     recorder: Option<&'r mut Recorder>,
 }
 
@@ -201,8 +212,9 @@ fn publish_one(source: &mut dyn FrameSource, out: &mut Outlets, frame_id: u64) -
         .send()
         .map_err(|e| anyhow!("cannot send frame {frame_id}: {e:?}"))?;
     wake_up(&out.waker);
-    if let Some(t) = &info.truth {
-        send_pose(&out.truth, t.pose_msg(frame_id, info.capture_time_ns))?;
+    let truth = info.truth_set(&out.objects, frame_id);
+    if truth.count > 0 {
+        send_poses(&out.truth, &truth)?;
     }
     Ok(true)
 }

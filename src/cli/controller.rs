@@ -20,6 +20,9 @@ pub struct ControllerArgs {
     /// Stop after this many seconds (0: run until interrupted).
     #[arg(long, default_value_t = 0.0)]
     pub seconds: f64,
+    /// The object to servo on, by name (default: the first of each pose set).
+    #[arg(long, value_name = "NAME")]
+    pub object: Option<String>,
 }
 
 /// How often a status line is printed.
@@ -29,7 +32,7 @@ const STATUS_EVERY: Duration = Duration::from_millis(500);
 pub fn run(args: &ControllerArgs) -> Result<()> {
     let config = Config::load(args.config.as_deref())?;
     let settings = config.controller;
-    let mut client = PoseClient::connect("photopose-controller", settings.deadline)?;
+    let mut client = PoseClient::follow("photopose-controller", args.object.as_deref(), settings.deadline)?;
     let law = ServoLaw::new(&settings);
     let mut robot = LogDriver::default();
     let period = Duration::from_secs_f64(1.0 / settings.rate_hz);

@@ -20,8 +20,8 @@ use crate::cli::report::plot::{self, Panel, Series, PALETTE};
 use crate::cli::report::stats::Samples;
 use crate::config::Config;
 use crate::render::SceneSpec;
-use crate::transport::ipc::{Ipc, PoseSubscriber};
-use crate::transport::messages::{monotonic_ns, PoseMsg, Status, POSES_SERVICE, TRUTH_SERVICE};
+use crate::transport::ipc::{receive_poses, Ipc, PoseSubscriber};
+use crate::transport::messages::{monotonic_ns, ObjectName, PoseMsg, PoseSet, Status, POSES_SERVICE, TRUTH_SERVICE};
 
 /// Run capture, estimator and controller together on the synthetic camera.
 #[derive(clap::Args, Debug)]
@@ -29,9 +29,10 @@ pub struct DemoArgs {
     /// How long to run, seconds.
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
-    /// Scene of the synthetic camera (its photo becomes the photo-model).
-    #[arg(long, value_name = "SCENE.toml", default_value = DEFAULT_SCENE)]
-    pub scene: PathBuf,
+    /// Scene of the synthetic camera (its photo becomes the photo-model); default
+    /// `config/scenes/rocket.toml`, with `--objects 2` `config/scenes/pair.toml`.
+    #[arg(long, value_name = "SCENE.toml")]
+    pub scene: Option<PathBuf>,
     /// Peak speed of the card, mm/s.
     #[arg(long, default_value_t = 150.0)]
     pub speed: f64,
@@ -48,7 +49,16 @@ pub struct DemoArgs {
     /// `rerun`).
     #[arg(long, value_name = "FILE.rrd")]
     pub rerun: Option<PathBuf>,
+    /// Cards to track at once: 1, or 2 (a second card, `config/scenes/hopper-beside.toml`,
+    /// moves on a loop of its own beside the first, each tracked by its own population).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=2))]
+    pub objects: u8,
 }
+
+/// The second card of `--objects 2`.
+pub const SECOND_CARD: &str = "config/scenes/hopper-beside.toml";
+/// The default first card and wall of `--objects 2`: room for the second card beside it.
+pub const PAIR_SCENE: &str = "config/scenes/pair.toml";
 
 /// Runs the demo: the photo-model, the three processes, the live status, then the
 /// summary and the trajectory plot.
@@ -60,24 +70,41 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         return Err(crate::viewer::unavailable("--rerun"));
     }
     let config = Config::load(args.config.as_deref())?;
-    let spec = SceneSpec::load(&args.scene)?;
-    let model_path = std::env::temp_dir().join(format!("photopose-demo-{}.model", std::process::id()));
-    super::scene_model(&spec, &config)?.save(&model_path)?;
+    let cards = args.cards();
+    let mut models = Vec::new();
+    for (k, scene) in cards.iter().enumerate() {
+        let spec = SceneSpec::load(scene)?;
+        let stem = spec.photo.file_stem().map(|s| s.to_string_lossy()).unwrap_or_default();
+        let name = ObjectName::from_stem(&stem);
+        let path = std::env::temp_dir().join(format!("photopose-demo-{}-{k}.model", std::process::id()));
+        super::scene_model(&spec, &config)?.save(&path)?;
+        models.push((name, path));
+    }
     let ipc = Ipc::new("photopose-demo")?;
     let poses = ipc.pose_subscriber(POSES_SERVICE)?;
     let truths = ipc.pose_subscriber(TRUTH_SERVICE)?;
-    let (mut procs, controller) = start_processes(args, &model_path)?;
+    let (mut procs, controller) = start_processes(args, &models)?;
     println!(
         "photopose demo: {} at up to {} mm/s, {} fps, for {} s (Ctrl-C stops early)",
-        args.scene.display(),
+        args.scene().display(),
         args.speed,
         args.fps,
         args.seconds
     );
-    let watched = watch(args.seconds, &ipc, [&poses, &truths], &mut procs, controller.as_deref());
+    let names: Vec<String> = models.iter().map(|(n, _)| n.to_string()).collect();
+    let watched = watch(
+        args.seconds,
+        &ipc,
+        [&poses, &truths],
+        &mut procs,
+        controller.as_deref(),
+        &names,
+    );
     procs.stop();
     drop((poses, truths));
-    let _ = std::fs::remove_file(&model_path);
+    for (_, path) in &models {
+        let _ = std::fs::remove_file(path);
+    }
     let run = watched?;
     println!("{}", run.summary());
     plot::save(&run.plot()?, &args.plot)?;
@@ -85,10 +112,30 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     Ok(())
 }
 
-/// Starts `estimator` (on the model at `model_path`), `capture` (the synthetic camera)
-/// and `controller`, each stopping by itself 10 s after the demo should have; returns
-/// them and the slot holding the controller's last line.
-fn start_processes(args: &DemoArgs, model_path: &Path) -> Result<(Processes, Option<Arc<Mutex<String>>>)> {
+impl DemoArgs {
+    /// The scene of the first card and the wall.
+    fn scene(&self) -> PathBuf {
+        let default = if self.objects >= 2 { PAIR_SCENE } else { DEFAULT_SCENE };
+        self.scene.clone().unwrap_or_else(|| PathBuf::from(default))
+    }
+
+    /// The scene files of the cards: `--scene`, then the second card's.
+    fn cards(&self) -> Vec<PathBuf> {
+        let mut cards = vec![self.scene()];
+        if self.objects >= 2 {
+            cards.push(PathBuf::from(SECOND_CARD));
+        }
+        cards
+    }
+}
+
+/// Starts `estimator` (on the named models), `capture` (the synthetic camera) and
+/// `controller`, each stopping by itself 10 s after the demo should have; returns them
+/// and the slot holding the controller's last line.
+fn start_processes(
+    args: &DemoArgs,
+    models: &[(ObjectName, PathBuf)],
+) -> Result<(Processes, Option<Arc<Mutex<String>>>)> {
     let exe = std::env::current_exe().context("cannot find the photopose executable")?;
     // The children also stop by themselves, should the demo be killed.
     let limit = format!("{}", args.seconds + 10.0);
@@ -97,15 +144,19 @@ fn start_processes(args: &DemoArgs, model_path: &Path) -> Result<(Processes, Opt
         common.extend(["--config".into(), c.display().to_string()]);
     }
     let mut procs = Processes::default();
-    let model = model_path.display().to_string();
-    let estimator: &[&str] = &["--model", &model, "--seconds", &limit];
-    procs.spawn(&exe, "estimator", &[estimator], &common, false)?;
+    let model = models[0].1.display().to_string();
+    let named: Vec<String> = models
+        .iter()
+        .flat_map(|(name, path)| ["--model".into(), format!("{name}={}", path.display())])
+        .collect();
+    let named: Vec<&str> = named.iter().map(String::as_str).collect();
+    procs.spawn(&exe, "estimator", &[&named, &["--seconds", &limit]], &common, false)?;
     if let Some(rrd) = &args.rerun {
         let rrd = rrd.display().to_string();
         let viewer: &[&str] = &["--save", &rrd, "--model", &model, "--seconds", &limit];
         procs.spawn(&exe, "viewer", &[viewer], &common, false)?;
     }
-    let scene = format!("synthetic:{}", args.scene.display());
+    let scene = format!("synthetic:{}", args.scene().display());
     let (speed, fps) = (args.speed.to_string(), args.fps.to_string());
     let capture: &[&str] = &[
         "--source",
@@ -117,7 +168,12 @@ fn start_processes(args: &DemoArgs, model_path: &Path) -> Result<(Processes, Opt
         "--seconds",
         &limit,
     ];
-    procs.spawn(&exe, "capture", &[capture], &common, false)?;
+    let more: Vec<String> = args.cards()[1..]
+        .iter()
+        .flat_map(|c| ["--card".into(), c.display().to_string()])
+        .collect();
+    let more: Vec<&str> = more.iter().map(String::as_str).collect();
+    procs.spawn(&exe, "capture", &[capture, &more], &common, false)?;
     let controller = procs.spawn(&exe, "controller", &[&["--seconds", &limit]], &common, true)?;
     Ok((procs, controller))
 }
@@ -130,19 +186,20 @@ fn watch(
     [poses, truths]: [&PoseSubscriber; 2],
     procs: &mut Processes,
     controller: Option<&Mutex<String>>,
-) -> Result<Record> {
-    let mut run = Record::default();
+    names: &[String],
+) -> Result<Run> {
+    let mut run = Run::new(names);
     let start = Instant::now();
     let bar = status_bar();
     let every = Duration::from_millis(if bar.is_hidden() { 2000 } else { 250 });
     let mut shown = Instant::now();
     while ipc.wait(Duration::from_millis(1)) && start.elapsed().as_secs_f64() < seconds {
         let now = monotonic_ns();
-        while let Some(s) = truths.receive().map_err(|e| anyhow!("cannot receive truth: {e:?}"))? {
-            run.truth.insert(s.payload().frame_id, *s.payload());
+        while let Some(set) = receive_poses(truths)? {
+            run.truth(&set);
         }
-        while let Some(s) = poses.receive().map_err(|e| anyhow!("cannot receive a pose: {e:?}"))? {
-            run.poses.push((*s.payload(), now));
+        while let Some(set) = receive_poses(poses)? {
+            run.poses(&set, now);
         }
         if let Some(line) = procs.exited() {
             bar.finish_and_clear();
@@ -264,7 +321,115 @@ impl Drop for Processes {
     }
 }
 
-/// What the demo saw: the truth of every frame and every pose with the time it arrived.
+/// A labelled line of a plot panel.
+type Line = (String, Vec<(f64, f64)>);
+
+/// What the demo saw of each object, in the estimator's order.
+struct Run {
+    tracks: Vec<(String, Record)>,
+}
+
+impl Run {
+    fn new(names: &[String]) -> Self {
+        Self {
+            tracks: names.iter().map(|n| (n.clone(), Record::default())).collect(),
+        }
+    }
+
+    /// Files each object's truth by name (a lone truth goes to a lone object).
+    fn truth(&mut self, set: &PoseSet) {
+        let lone = self.tracks.len() == 1 && set.count == 1;
+        for (name, record) in &mut self.tracks {
+            if let Some(t) = set.get(name).or(if lone { set.first() } else { None }) {
+                record.truth.insert(t.frame_id, *t);
+            }
+        }
+    }
+
+    /// Files each object's pose, received at `now`.
+    fn poses(&mut self, set: &PoseSet, now: u64) {
+        for (name, record) in &mut self.tracks {
+            if let Some(p) = set.get(name) {
+                record.poses.push((*p, now));
+            }
+        }
+    }
+
+    /// The status line: the first object's figures, then the others' errors.
+    fn status(&self, elapsed: f64) -> String {
+        let mut line = self.tracks[0].1.status(elapsed);
+        if self.tracks.len() > 1 {
+            for (name, record) in &self.tracks {
+                let errors = Samples::new(record.tracked().map(|(p, t, _)| position_error(p, t)));
+                line += &format!(" | {name} {} p95 {:.1} mm", record.state(), errors.percentile(95.0));
+            }
+        }
+        line
+    }
+
+    /// x, y, z against time: each object's truth and estimate, one panel per axis.
+    fn plot(&self) -> Result<image::RgbImage, plot::PlotError> {
+        let t0 = (self.tracks.iter())
+            .filter_map(|(_, r)| r.truth.values().next().map(|t| t.capture_time_ns))
+            .min()
+            .unwrap_or(0);
+        let time = |ns: u64| ns.saturating_sub(t0) as f64 * 1e-9;
+        // Per axis, per object: (label, points) of the truth, then of the estimate.
+        let one = self.tracks.len() == 1;
+        let data: Vec<Vec<Line>> = (0..3)
+            .map(|i| {
+                let mut lines = Vec::new();
+                for (name, r) in &self.tracks {
+                    let label = |what: &str| {
+                        if one {
+                            what.to_string()
+                        } else {
+                            format!("{name} {what}")
+                        }
+                    };
+                    let truth = r.truth.values().map(|t| (time(t.capture_time_ns), t.position_mm[i]));
+                    let estimate = r.poses.iter().map(|(p, _)| (time(p.capture_time_ns), p.position_mm[i]));
+                    lines.push((label("truth"), truth.collect()));
+                    lines.push((label("estimate"), estimate.collect()));
+                }
+                lines
+            })
+            .collect();
+        let titles = ["x (hand frame)", "y (hand frame)", "z (hand frame)"];
+        let panels: Vec<Panel> = (data.iter().zip(titles))
+            .map(|(lines, title)| Panel {
+                title,
+                x_label: "time [s]",
+                y_label: "position [mm]",
+                series: (lines.iter().enumerate())
+                    .map(|(k, (label, points))| Series {
+                        label,
+                        points,
+                        color: PALETTE[k % PALETTE.len()],
+                    })
+                    .collect(),
+                ..Default::default()
+            })
+            .collect();
+        plot::panels(&panels, 1200, 900)
+    }
+
+    /// The summary, one block per object.
+    fn summary(&self) -> String {
+        if self.tracks.len() == 1 {
+            return self.tracks[0].1.summary();
+        }
+        let blocks: Vec<String> = self
+            .tracks
+            .iter()
+            .map(|(name, record)| format!("{name}:\n{}", record.summary()))
+            .collect();
+        blocks.join("\n")
+    }
+}
+
+/// What the demo saw of one object: the truth of every frame and every pose with the
+/// time it arrived.
 #[derive(Default)]
 struct Record {
     truth: BTreeMap<u64, PoseMsg>,
@@ -280,11 +445,17 @@ fn position_error(p: &PoseMsg, t: &PoseMsg) -> f64 {
 }
 
 impl Record {
+    /// The index of the first tracking pose: the end of the first acquisition.
+    fn acquired(&self) -> usize {
+        let tracking = |(p, _): &&(PoseMsg, u64)| p.status == Status::Tracking as u32;
+        self.poses.iter().position(|p| tracking(&p)).unwrap_or(self.poses.len())
+    }
+
     /// Tracking poses after the first (the acquisition), with their truth.
     fn tracked(&self) -> impl Iterator<Item = (&PoseMsg, &PoseMsg, u64)> {
         self.poses
             .iter()
-            .skip(1)
+            .skip(self.acquired() + 1)
             .filter(|(p, _)| p.status == Status::Tracking as u32)
             .filter_map(|(p, at)| Some((p, self.truth.get(&p.frame_id)?, *at)))
     }
@@ -304,8 +475,8 @@ impl Record {
 
     /// Frames that went by during the acquisition.
     fn acquisition_frames(&self) -> u64 {
-        match (self.poses.first(), self.poses.get(1)) {
-            (Some((a, _)), Some((b, _))) => b.frame_id.saturating_sub(a.frame_id + 1),
+        match (self.truth.keys().next(), self.poses.get(self.acquired() + 1)) {
+            (Some(&a), Some((b, _))) => b.frame_id.saturating_sub(a + 1),
             _ => 0,
         }
     }
@@ -328,11 +499,7 @@ impl Record {
                 .iter()
                 .map(|(p, _)| (p.publish_time_ns.saturating_sub(p.capture_time_ns)) as f64 * 1e-6),
         );
-        let state = self
-            .poses
-            .last()
-            .map(|(p, _)| crate::client::status_name(p.status))
-            .unwrap_or_else(|| "acquiring".into());
+        let state = self.state();
         format!(
             "{elapsed:5.1} s | frames {:5} ({:4.1} fps) | poses {:5} dropped {:3} | {state} | error {:5.1} mm (p95 {:5.1}) | capture→pose p50 {:5.1} ms p99 {:5.1} ms",
             self.truth.len(),
@@ -344,6 +511,14 @@ impl Record {
             latency.median(),
             latency.percentile(99.0)
         )
+    }
+
+    /// The newest pose's status, or `acquiring`.
+    fn state(&self) -> String {
+        self.poses
+            .last()
+            .map(|(p, _)| crate::client::status_name(p.status))
+            .unwrap_or_else(|| "acquiring".into())
     }
 
     /// The report printed at the end.
@@ -366,15 +541,17 @@ impl Record {
             .iter()
             .filter(|(p, _)| p.status == Status::Tracking as u32)
             .count();
-        let acquisition = self
-            .poses
-            .first()
-            .map(|(p, _)| p.publish_time_ns.saturating_sub(p.capture_time_ns) as f64 * 1e-9)
-            .unwrap_or(f64::NAN);
+        // From the first frame to the first tracking pose (an object acquired in the
+        // background is published as `searching` meanwhile).
+        let first_frame = self.truth.values().next().map(|t| t.capture_time_ns);
+        let acquisition = match (first_frame, self.poses.get(self.acquired())) {
+            (Some(t0), Some((p, _))) => p.publish_time_ns.saturating_sub(t0) as f64 * 1e-9,
+            _ => f64::NAN,
+        };
         let (dropped, span) = self.dropped();
         format!(
             "frames {}  poses {} ({tracking} tracking)  dropped while tracking {dropped} of {span} ({:.2} %)\n\
-             acquisition {acquisition:.2} s (first frame → first pose; {} frames went by)\n\
+             acquisition {acquisition:.2} s (first frame → first tracking pose; {} frames went by)\n\
              position error (tracking): mean {:.1} mm  p95 {:.1} mm  max {:.1} mm\n\
              latency capture→pose published: p50 {:.1} ms  p99 {:.1} ms;  capture→pose received: p50 {:.1} ms  p99 {:.1} ms",
             self.truth.len(),
@@ -389,49 +566,5 @@ impl Record {
             end_to_end.median(),
             end_to_end.percentile(99.0)
         )
-    }
-
-    /// x, y, z against time: truth and estimate, one panel each.
-    fn plot(&self) -> Result<image::RgbImage, plot::PlotError> {
-        let t0 = self.truth.values().next().map(|t| t.capture_time_ns).unwrap_or(0);
-        let time = |ns: u64| ns.saturating_sub(t0) as f64 * 1e-9;
-        let axis = |i: usize| {
-            let truth: Vec<(f64, f64)> = self
-                .truth
-                .values()
-                .map(|t| (time(t.capture_time_ns), t.position_mm[i]))
-                .collect();
-            let estimate: Vec<(f64, f64)> = self
-                .poses
-                .iter()
-                .map(|(p, _)| (time(p.capture_time_ns), p.position_mm[i]))
-                .collect();
-            (truth, estimate)
-        };
-        let data: Vec<_> = (0..3).map(axis).collect();
-        let titles = ["x (hand frame)", "y (hand frame)", "z (hand frame)"];
-        let panels: Vec<Panel> = data
-            .iter()
-            .zip(titles)
-            .map(|((truth, estimate), title)| Panel {
-                title,
-                x_label: "time [s]",
-                y_label: "position [mm]",
-                series: vec![
-                    Series {
-                        label: "truth",
-                        points: truth,
-                        color: PALETTE[0],
-                    },
-                    Series {
-                        label: "estimate",
-                        points: estimate,
-                        color: PALETTE[1],
-                    },
-                ],
-                ..Default::default()
-            })
-            .collect();
-        plot::panels(&panels, 1200, 900)
     }
 }

@@ -19,7 +19,7 @@ use serde::Serialize;
 
 use crate::cli::report::plot::{self, Panel, Series, PALETTE};
 use crate::cli::report::stats::Samples;
-use crate::transport::ipc::Ipc;
+use crate::transport::ipc::{receive_poses, Ipc};
 use crate::transport::messages::{monotonic_ns, FrameHeader, PoseMsg, FRAMES_SERVICE, POSES_SERVICE};
 
 /// Measure the latency of the running service.
@@ -146,11 +146,14 @@ fn observe(seconds: f64) -> Result<Observed> {
             let h: FrameHeader = *frame.user_header();
             seen.frames.insert(h.frame_id, (h.publish_time_ns, now));
         }
-        while let Some(pose) = poses.receive().map_err(|e| anyhow!("cannot receive a pose: {e:?}"))? {
-            seen.poses.push(Seen {
-                pose: *pose.payload(),
-                received_ns: monotonic_ns(),
-            });
+        while let Some(set) = receive_poses(&poses)? {
+            // Every object of a set shares the frame's times.
+            if let Some(&pose) = set.first() {
+                seen.poses.push(Seen {
+                    pose,
+                    received_ns: monotonic_ns(),
+                });
+            }
         }
     }
     Ok(seen)

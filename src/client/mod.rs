@@ -30,7 +30,7 @@ use std::time::Duration;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
 use crate::client::settings::ControllerSettings;
-use crate::transport::ipc::{Ipc, IpcError, PoseSubscriber};
+use crate::transport::ipc::{receive_poses, Ipc, IpcError, PoseSubscriber};
 use crate::transport::messages::{monotonic_ns, PoseMsg, Status, POSES_SERVICE};
 
 /// A problem of the client side.
@@ -44,39 +44,47 @@ pub enum ClientError {
     Driver(String),
 }
 
-/// Subscribes to `photopose/poses` and keeps the newest pose.
+/// Subscribes to `photopose/poses` and keeps the newest pose of one object.
 pub struct PoseClient {
     ipc: Ipc,
     poses: PoseSubscriber,
     deadline: Duration,
+    object: Option<String>,
     newest: Option<PoseMsg>,
     received: u64,
 }
 
 impl PoseClient {
-    /// Connects as iceoryx2 node `name`; poses older than `deadline` are stale.
+    /// Connects as iceoryx2 node `name` and follows the first object of each pose set
+    /// (the only one of a single-model estimator); poses older than `deadline` are stale.
     pub fn connect(name: &str, deadline: Duration) -> Result<Self, ClientError> {
+        Self::follow(name, None, deadline)
+    }
+
+    /// [`PoseClient::connect`], following the object named `object` (`None`: the first).
+    pub fn follow(name: &str, object: Option<&str>, deadline: Duration) -> Result<Self, ClientError> {
         let ipc = Ipc::new(name)?;
         let poses = ipc.pose_subscriber(POSES_SERVICE)?;
         Ok(Self {
             ipc,
             poses,
             deadline,
+            object: object.map(str::to_string),
             newest: None,
             received: 0,
         })
     }
 
-    /// Takes every pose that arrived since the last call and keeps the newest; returns
-    /// how many arrived.
+    /// Takes every pose set that arrived since the last call and keeps the followed
+    /// object's newest pose; returns how many of its poses arrived.
     pub fn poll(&mut self) -> Result<usize, ClientError> {
         let mut n = 0;
-        while let Some(sample) = self
-            .poses
-            .receive()
-            .map_err(|e| IpcError::failed("receive a pose", e))?
-        {
-            let pose = *sample.payload();
+        while let Some(set) = receive_poses(&self.poses)? {
+            let found = match &self.object {
+                Some(name) => set.get(name),
+                None => set.first(),
+            };
+            let Some(&pose) = found else { continue };
             // A restarted estimator starts its frame ids again: newest by capture time.
             if self.newest.is_none_or(|p| pose.capture_time_ns >= p.capture_time_ns) {
                 self.newest = Some(pose);

@@ -370,6 +370,11 @@ impl StreamTracker {
         })
     }
 
+    /// Whether the prepared frame is for a (one-shot) acquisition, not for tracking.
+    pub fn acquiring(&self) -> bool {
+        matches!(self.ready, Some(Ready::Acquire(_)))
+    }
+
     /// The photo-model being tracked.
     pub fn model(&self) -> &PhotoModel {
         &self.model

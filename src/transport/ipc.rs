@@ -15,7 +15,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory;
 
-use crate::transport::messages::{FrameHeader, PoseMsg, FRAMES_SERVICE};
+use crate::transport::messages::{FrameHeader, PoseSet, FRAMES_SERVICE};
 
 /// What went wrong with iceoryx2: the step that failed, what it concerned, and
 /// iceoryx2's own error.
@@ -69,10 +69,10 @@ pub type Transport = ipc::Service;
 pub type FramePublisher = Publisher<Transport, [u8], FrameHeader>;
 /// Receives side-by-side frames.
 pub type FrameSubscriber = Subscriber<Transport, [u8], FrameHeader>;
-/// Publishes poses (estimates or ground truth).
-pub type PosePublisher = Publisher<Transport, PoseMsg, ()>;
-/// Receives poses.
-pub type PoseSubscriber = Subscriber<Transport, PoseMsg, ()>;
+/// Publishes pose sets (estimates or ground truth).
+pub type PosePublisher = Publisher<Transport, PoseSet, ()>;
+/// Receives pose sets.
+pub type PoseSubscriber = Subscriber<Transport, PoseSet, ()>;
 
 /// Frames a subscriber holds before the oldest is overwritten: a slow subscriber loses
 /// old frames, never memory, and never blocks the camera.
@@ -131,10 +131,10 @@ impl Ipc {
     }
 
     /// A pose service ([`crate::transport::messages::POSES_SERVICE`] or [`crate::transport::messages::TRUTH_SERVICE`]).
-    pub fn poses(&self, service: &str) -> Result<PortFactory<Transport, PoseMsg, ()>> {
+    pub fn poses(&self, service: &str) -> Result<PortFactory<Transport, PoseSet, ()>> {
         self.node
             .service_builder(&Self::service_name(service)?)
-            .publish_subscribe::<PoseMsg>()
+            .publish_subscribe::<PoseSet>()
             .subscriber_max_buffer_size(POSE_BUFFER)
             .history_size(1)
             .enable_safe_overflow(true)
@@ -230,14 +230,22 @@ pub fn wake_up(waker: &Waker) {
     }
 }
 
-/// Sends one pose.
-pub fn send_pose(publisher: &PosePublisher, pose: PoseMsg) -> Result<()> {
+/// Sends one frame's pose set.
+pub fn send_poses(publisher: &PosePublisher, poses: &PoseSet) -> Result<()> {
     let sample = publisher
         .loan_uninit()
         .map_err(|e| IpcError::failed("loan a pose sample", e))?;
     sample
-        .write_payload(pose)
+        .write_payload(*poses)
         .send()
-        .map_err(|e| IpcError::failed("send a pose", e))?;
+        .map_err(|e| IpcError::failed("send a pose set", e))?;
     Ok(())
+}
+
+/// Takes the next pose set that arrived on `subscriber`, if any.
+pub fn receive_poses(subscriber: &PoseSubscriber) -> Result<Option<PoseSet>> {
+    let sample = subscriber
+        .receive()
+        .map_err(|e| IpcError::failed("receive a pose set", e))?;
+    Ok(sample.map(|s| *s.payload()))
 }

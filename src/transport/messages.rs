@@ -8,9 +8,9 @@ use crate::vision::PixelFormat;
 
 /// Service carrying side-by-side stereo frames (`[u8]` payload, [`FrameHeader`]).
 pub const FRAMES_SERVICE: &str = "photopose/stereo_frames";
-/// Service carrying one [`PoseMsg`] per processed frame.
+/// Service carrying one [`PoseSet`] per processed frame: every tracked object's pose.
 pub const POSES_SERVICE: &str = "photopose/poses";
-/// Service carrying the ground-truth [`PoseMsg`] of synthetic and replayed frames.
+/// Service carrying the ground-truth [`PoseSet`] of synthetic and replayed frames.
 pub const TRUTH_SERVICE: &str = "photopose/truth";
 
 /// Pixel formats of a frame payload ([`FrameHeader::pixel_format`]).
@@ -207,7 +207,9 @@ impl From<Status> for u32 {
     }
 }
 
-/// One pose of the model in the hand frame (DESIGN §4, type name `PhotoposePose`).
+/// One pose of a model in the hand frame: the record of DESIGN §4 (type name
+/// `PhotoposePose`, 112 bytes). Since the wire contract's version 2 it travels inside a
+/// [`PoseSet`], once per object; no service carries it alone any more.
 #[repr(C)]
 #[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("PhotoposePose")]
@@ -281,6 +283,156 @@ impl PoseMsg {
     }
 }
 
+/// Objects one [`PoseSet`] carries at most.
+pub const MAX_OBJECTS: usize = 8;
+/// Bytes of an [`ObjectPose::name`]: up to 31 of UTF-8, then NUL padding.
+pub const NAME_LEN: usize = 32;
+
+/// One object's pose in a [`PoseSet`]: its name and its [`PoseMsg`] (144 bytes).
+#[repr(C)]
+#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("PhotoposeObjectPose")]
+pub struct ObjectPose {
+    /// The object's name ([`ObjectName`]), NUL-padded.
+    pub name: [u8; NAME_LEN],
+    /// Its pose in the frame.
+    pub pose: PoseMsg,
+}
+
+impl ObjectPose {
+    /// The name up to its first NUL (`"?"` if those bytes are not UTF-8).
+    pub fn name(&self) -> &str {
+        let end = self.name.iter().position(|&b| b == 0).unwrap_or(NAME_LEN);
+        std::str::from_utf8(&self.name[..end]).unwrap_or("?")
+    }
+}
+
+/// The poses of every object in one frame, published together: the payload of
+/// `photopose/poses` and `photopose/truth` since version 2 of the wire contract (type
+/// name `PhotoposePoseV2`, 1160 bytes). A client built for version 1 (`PhotoposePose`)
+/// fails to open the service with a type error instead of misreading these bytes.
+#[repr(C)]
+#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("PhotoposePoseV2")]
+pub struct PoseSet {
+    /// Objects in use, `objects[..count]` (at most [`MAX_OBJECTS`]).
+    pub count: u32,
+    /// Zero; keeps `objects` 8-byte aligned.
+    pub reserved: u32,
+    /// The objects' poses, in the estimator's order; the rest zero.
+    pub objects: [ObjectPose; MAX_OBJECTS],
+}
+
+/// A [`PoseSet`] already holds [`MAX_OBJECTS`] objects.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("a pose set holds at most {MAX_OBJECTS} objects")]
+pub struct SetFull;
+
+impl PoseSet {
+    /// A set of one object's pose.
+    pub fn single(name: &ObjectName, pose: PoseMsg) -> Self {
+        let mut set = PoseSet::default();
+        set.objects[0] = ObjectPose {
+            name: name.bytes(),
+            pose,
+        };
+        set.count = 1;
+        set
+    }
+
+    /// Appends an object's pose.
+    pub fn push(&mut self, name: &ObjectName, pose: PoseMsg) -> Result<(), SetFull> {
+        let slot = self.objects.get_mut(self.count as usize).ok_or(SetFull)?;
+        *slot = ObjectPose {
+            name: name.bytes(),
+            pose,
+        };
+        self.count += 1;
+        Ok(())
+    }
+
+    /// The objects in use (a `count` beyond [`MAX_OBJECTS`] is read as the maximum).
+    pub fn objects(&self) -> &[ObjectPose] {
+        &self.objects[..(self.count as usize).min(MAX_OBJECTS)]
+    }
+
+    /// The pose of the object named `name`.
+    pub fn get(&self, name: &str) -> Option<&PoseMsg> {
+        self.objects().iter().find(|o| o.name() == name).map(|o| &o.pose)
+    }
+
+    /// The first object's pose (the only one of a single-object estimator).
+    pub fn first(&self) -> Option<&PoseMsg> {
+        self.objects().first().map(|o| &o.pose)
+    }
+
+    /// Sets every object's publish time.
+    pub fn stamp(&mut self, publish_time_ns: u64) {
+        let n = self.objects().len();
+        for o in &mut self.objects[..n] {
+            o.pose.publish_time_ns = publish_time_ns;
+        }
+    }
+}
+
+/// An object's name: 1–31 ASCII letters, digits or underscores, starting with a letter,
+/// so it is also a valid ROS 2 topic name component (`/photopose/<name>/pose`).
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct ObjectName(String);
+
+impl ObjectName {
+    /// Checks `name`; the error says what is wrong with it.
+    pub fn new(name: &str) -> Result<Self, String> {
+        let mut chars = name.chars();
+        if !chars.next().is_some_and(|c| c.is_ascii_alphabetic()) {
+            return Err(format!("object name {name:?} must start with an ASCII letter"));
+        }
+        if !chars.all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            return Err(format!(
+                "object name {name:?} may hold only ASCII letters, digits and underscores"
+            ));
+        }
+        if name.len() >= NAME_LEN {
+            return Err(format!("object name {name:?} is longer than {} bytes", NAME_LEN - 1));
+        }
+        Ok(Self(name.to_string()))
+    }
+
+    /// A valid name made from a file stem: other characters become `_`, a leading
+    /// non-letter gets an `o` in front, and it is cut to 31 bytes (`"object"` if empty).
+    pub fn from_stem(stem: &str) -> Self {
+        let mut name: String = stem
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+            .collect();
+        if name.is_empty() {
+            name = "object".into();
+        } else if !name.starts_with(|c: char| c.is_ascii_alphabetic()) {
+            name.insert(0, 'o');
+        }
+        name.truncate(NAME_LEN - 1);
+        Self(name)
+    }
+
+    /// The name.
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+
+    /// The name's wire bytes, NUL-padded.
+    pub fn bytes(&self) -> [u8; NAME_LEN] {
+        let mut out = [0u8; NAME_LEN];
+        out[..self.0.len()].copy_from_slice(self.0.as_bytes());
+        out
+    }
+}
+
+impl std::fmt::Display for ObjectName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
 /// CLOCK_MONOTONIC now, ns: the time base of every timestamp in the messages.
 pub fn monotonic_ns() -> u64 {
     let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
@@ -310,6 +462,60 @@ mod tests {
             offset_of!(PoseMsg, status),
         ];
         assert_eq!(offsets, [0, 8, 16, 24, 48, 80, 96, 104, 108]);
+    }
+
+    #[test]
+    fn pose_set_layout_is_the_version_2_contract() {
+        assert_eq!(size_of::<ObjectPose>(), 144);
+        assert_eq!((offset_of!(ObjectPose, name), offset_of!(ObjectPose, pose)), (0, 32));
+        assert_eq!(size_of::<PoseSet>(), 8 + 8 * 144);
+        assert_eq!(align_of::<PoseSet>(), 8);
+        let offsets = [
+            offset_of!(PoseSet, count),
+            offset_of!(PoseSet, reserved),
+            offset_of!(PoseSet, objects),
+        ];
+        assert_eq!(offsets, [0, 4, 8]);
+    }
+
+    #[test]
+    fn pose_sets_keep_names_and_refuse_a_ninth_object() {
+        let mut set = PoseSet::default();
+        for i in 0..MAX_OBJECTS {
+            let pose = PoseMsg {
+                frame_id: i as u64,
+                ..Default::default()
+            };
+            set.push(&ObjectName::new(&format!("card_{i}")).unwrap(), pose).unwrap();
+        }
+        assert_eq!(
+            set.push(&ObjectName::new("extra").unwrap(), PoseMsg::default()),
+            Err(SetFull)
+        );
+        assert_eq!(set.get("card_3").map(|p| p.frame_id), Some(3));
+        assert_eq!(set.objects()[7].name(), "card_7");
+        set.count = 99;
+        assert_eq!(set.objects().len(), MAX_OBJECTS, "a corrupt count is clamped");
+    }
+
+    #[test]
+    fn object_names_are_ros_name_components() {
+        assert!(ObjectName::new("cup_2").is_ok());
+        let long = "a".repeat(32);
+        for (bad, why) in [
+            ("", "start with"),
+            ("2cup", "start with"),
+            ("my-cup", "only ASCII"),
+            ("cup/x", "only ASCII"),
+            (long.as_str(), "longer than 31"),
+        ] {
+            let e = ObjectName::new(bad).unwrap_err();
+            assert!(e.contains(why), "{bad:?}: {e}");
+        }
+        assert_eq!(ObjectName::from_stem("rocket.v2").as_str(), "rocket_v2");
+        assert_eq!(ObjectName::from_stem("3d-box").as_str(), "o3d_box");
+        assert_eq!(ObjectName::from_stem("").as_str(), "object");
+        assert_eq!(ObjectName::from_stem(&"x".repeat(40)).as_str().len(), 31);
     }
 
     #[test]

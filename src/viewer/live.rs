@@ -13,7 +13,7 @@ use rerun::RecordingStream;
 
 use crate::camera::calibration::Calibration;
 use crate::camera::Intrinsics;
-use crate::transport::ipc::{FrameSubscriber, Ipc, PoseSubscriber};
+use crate::transport::ipc::{receive_poses, FrameSubscriber, Ipc, PoseSubscriber};
 use crate::transport::messages::{validate_frame, PoseMsg, POSES_SERVICE, TRUTH_SERVICE};
 use crate::viewer::outline::{status_colour, TRUTH_COLOUR};
 use crate::viewer::scene::{self, Drawing, Kind};
@@ -211,13 +211,11 @@ impl Live<'_> {
         Ok(())
     }
 
-    /// Logs the figures of every pose that arrived on `subscriber` as `kind`.
+    /// Logs the figures of every pose of the first object that arrived on `subscriber`
+    /// as `kind`.
     fn poses(&mut self, subscriber: &PoseSubscriber, kind: Kind) -> Result<()> {
-        while let Some(sample) = subscriber
-            .receive()
-            .map_err(|e| anyhow!("cannot receive a pose: {e:?}"))?
-        {
-            let p = *sample.payload();
+        while let Some(set) = receive_poses(subscriber)? {
+            let Some(&p) = set.first() else { continue };
             if p.is_sound() {
                 self.pose(&p, kind)?;
                 self.newest[usize::from(kind == Kind::Truth)] = Some(p);

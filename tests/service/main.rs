@@ -15,6 +15,7 @@ mod access;
 mod bad_frames;
 mod demo;
 mod latency;
+mod objects;
 mod pipeline;
 mod python_client;
 mod realtime;

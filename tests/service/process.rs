@@ -8,8 +8,8 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use photopose::transport::ipc::{Ipc, PoseSubscriber};
-use photopose::transport::messages::{PoseMsg, POSES_SERVICE, TRUTH_SERVICE};
+use photopose::transport::ipc::{receive_poses, Ipc, PoseSubscriber};
+use photopose::transport::messages::{PoseMsg, PoseSet, POSES_SERVICE, TRUTH_SERVICE};
 
 use crate::common::{data, repo};
 
@@ -86,8 +86,14 @@ pub struct Watcher {
     _ipc: Ipc,
     poses: PoseSubscriber,
     truth: PoseSubscriber,
+    /// The first object's poses (the only one of a single-model estimator).
     pub got: Vec<(PoseMsg, Instant)>,
+    /// The first object's truth by frame.
     pub truths: HashMap<u64, PoseMsg>,
+    /// Every pose set.
+    pub sets: Vec<PoseSet>,
+    /// Every truth set by frame.
+    pub truth_sets: HashMap<u64, PoseSet>,
     /// When each truth (a frame of the camera) arrived.
     pub truth_times: Vec<Instant>,
 }
@@ -103,6 +109,8 @@ impl Watcher {
             truth,
             got: Vec::new(),
             truths: HashMap::new(),
+            sets: Vec::new(),
+            truth_sets: HashMap::new(),
             truth_times: Vec::new(),
         }
     }
@@ -135,11 +143,17 @@ impl Watcher {
     }
 
     pub fn drain(&mut self) {
-        while let Some(s) = self.poses.receive().expect("receive pose") {
-            self.got.push((*s.payload(), Instant::now()));
+        while let Some(set) = receive_poses(&self.poses).expect("receive poses") {
+            if let Some(&p) = set.first() {
+                self.got.push((p, Instant::now()));
+            }
+            self.sets.push(set);
         }
-        while let Some(s) = self.truth.receive().expect("receive truth") {
-            self.truths.insert(s.payload().frame_id, *s.payload());
+        while let Some(set) = receive_poses(&self.truth).expect("receive truth") {
+            if let Some(&t) = set.first() {
+                self.truths.insert(t.frame_id, t);
+                self.truth_sets.insert(t.frame_id, set);
+            }
             self.truth_times.push(Instant::now());
         }
     }

@@ -8,8 +8,8 @@ use std::process::{Command, Stdio};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use photopose::transport::ipc::{send_pose, Ipc};
-use photopose::transport::messages::{monotonic_ns, PoseMsg, TRUTH_SERVICE};
+use photopose::transport::ipc::{receive_poses, send_poses, Ipc};
+use photopose::transport::messages::{monotonic_ns, ObjectName, PoseMsg, PoseSet, TRUTH_SERVICE};
 
 use crate::common::repo;
 use crate::process::{serial, spawn, Running};
@@ -114,18 +114,34 @@ fn bits(values: &[f64]) -> Vec<u64> {
     values.iter().map(|v| v.to_bits()).collect()
 }
 
+/// Poses by object name and frame id.
+type Seen = HashMap<(String, u64), PoseMsg>;
+
+/// Files every object's pose of `set`.
+fn file(seen: &mut Seen, set: &PoseSet) {
+    for o in set.objects() {
+        seen.insert((o.name().to_string(), o.pose.frame_id), o.pose);
+    }
+}
+
 /// Asserts that every pose the Python client printed is, field by field and bit by bit,
-/// the pose Rust received (or sent) with that frame id.
-fn assert_python_saw(lines: &[String], rust: &HashMap<u64, PoseMsg>) {
-    let mut last: Option<u64> = None;
+/// the pose Rust received (or sent) for that object and frame id.
+fn assert_python_saw(lines: &[String], rust: &Seen) {
+    let mut last: HashMap<String, u64> = HashMap::new();
     for line in lines {
         let value: serde_json::Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}: {line}"));
         let frame_id = json_u64(line, "frame_id");
-        assert!(last.is_none_or(|l| frame_id > l), "frame {frame_id} after {last:?}");
-        last = Some(frame_id);
+        let object = value["object"]
+            .as_str()
+            .unwrap_or_else(|| panic!("no object name: {line}"));
+        let before = last.insert(object.to_string(), frame_id);
+        assert!(
+            before.is_none_or(|l| frame_id > l),
+            "{object} frame {frame_id} after {before:?}"
+        );
         let p = rust
-            .get(&frame_id)
-            .unwrap_or_else(|| panic!("Python printed frame {frame_id} that Rust never saw: {line}"));
+            .get(&(object.to_string(), frame_id))
+            .unwrap_or_else(|| panic!("Python printed {object} of frame {frame_id} that Rust never saw: {line}"));
         assert_eq!(json_u64(line, "capture_time_ns"), p.capture_time_ns, "{line}");
         assert_eq!(json_u64(line, "publish_time_ns"), p.publish_time_ns, "{line}");
         assert_eq!(
@@ -209,11 +225,11 @@ fn python_client_reads_the_pose_layout() {
     let truth = ipc.pose_subscriber(TRUTH_SERVICE).expect("truth");
     let _capture = spawn(&["capture", "--seconds", "6"]);
     let mut python = PythonClient::spawn(TRUTH_SERVICE, 30);
-    let mut truths: HashMap<u64, PoseMsg> = HashMap::new();
+    let mut truths = Seen::new();
     let start = Instant::now();
     loop {
-        while let Some(s) = truth.receive().expect("receive truth") {
-            truths.insert(s.payload().frame_id, *s.payload());
+        while let Some(set) = receive_poses(&truth).expect("receive truth") {
+            file(&mut truths, &set);
         }
         if python.done() {
             break;
@@ -224,20 +240,21 @@ fn python_client_reads_the_pose_layout() {
         );
         std::thread::sleep(Duration::from_millis(2));
     }
-    while let Some(s) = truth.receive().expect("receive truth") {
-        truths.insert(s.payload().frame_id, *s.payload());
+    while let Some(set) = receive_poses(&truth).expect("receive truth") {
+        file(&mut truths, &set);
     }
     let truth_lines = python.finish();
     assert_eq!(truth_lines.len(), 30, "{truth_lines:?}");
     assert_python_saw(&truth_lines, &truths);
     assert!(truths.values().any(|t| t.position_mm[2] > 500.0 && t.size_mm[0] > 0.0));
 
-    // The truth leaves fitness, generations, status and publish time at zero: poses with
-    // every field set, published by this test on a service of its own.
+    // The truth leaves fitness, generations, status and publish time at zero: sets of two
+    // objects' poses with every field set, published by this test on a service of its own.
     let service = "photopose/test/pyclient";
     let publisher = ipc.pose_publisher(service).expect("test publisher");
     let mut python = PythonClient::spawn(service, 6);
-    let mut sent: HashMap<u64, PoseMsg> = HashMap::new();
+    let mut sent = Seen::new();
+    let names = ["first", "second_card_with_a_31_byte_name"].map(|n| ObjectName::new(n).expect("name"));
     let start = Instant::now();
     for i in 0.. {
         if python.done() {
@@ -247,14 +264,21 @@ fn python_client_reads_the_pose_layout() {
             start.elapsed() < Duration::from_secs(25),
             "pose_client.py did not finish"
         );
-        let pose = distinct_pose(i);
-        send_pose(&publisher, pose).expect("send");
-        sent.insert(pose.frame_id, pose);
+        let mut set = PoseSet::single(&names[0], distinct_pose(i));
+        let mut other = distinct_pose(i + 1000);
+        other.frame_id = set.objects()[0].pose.frame_id;
+        set.push(&names[1], other).expect("room for two");
+        send_poses(&publisher, &set).expect("send");
+        file(&mut sent, &set);
         std::thread::sleep(Duration::from_millis(20));
     }
     let lines = python.finish();
     assert_eq!(lines.len(), 6, "{lines:?}");
     assert_python_saw(&lines, &sent);
+    assert!(
+        lines.iter().any(|l| l.contains("\"second_card_with_a_31_byte_name\"")),
+        "both objects of a set: {lines:?}"
+    );
     println!(
         "pose_client.py printed 30 truth poses and 6 test poses, all bit-identical to Rust's; first: {}",
         truth_lines[0]

@@ -223,10 +223,7 @@ impl<O: Opener> FrameSource for ZedSource<O> {
             monotonic_ns()
         };
         self.stats.frames += 1;
-        let info = FrameInfo {
-            capture_time_ns,
-            truth: None,
-        };
+        let info = FrameInfo::single(capture_time_ns, None);
         Ok(Some((info, frame)))
     }
 
