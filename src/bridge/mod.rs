@@ -10,5 +10,8 @@ pub mod cdr;
 pub mod clock;
 pub mod msgs;
 pub mod names;
+pub mod run;
 pub mod session;
 pub mod topics;
+
+pub use run::{run, Counts, Options};
