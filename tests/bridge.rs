@@ -24,8 +24,8 @@ use photopose::bridge::msgs::{diagnostic_status, pose_stamped, Stamp, DIAGNOSTIC
 use photopose::transport::ipc::{receive_poses, Ipc};
 use photopose::transport::messages::{PoseMsg, POSES_SERVICE};
 
-use crate::common::repo;
-use crate::process::{estimator, photopose, serial, spawn, Running};
+use crate::common::{data, repo, scratch};
+use crate::process::{estimator, model, photopose, serial, spawn, Running};
 
 /// Whether the tests run under CI (`CI` set, and not `false` or `0`).
 fn under_ci() -> bool {
@@ -145,17 +145,36 @@ fn sets_in(ipc: &Ipc, sub: &photopose::transport::ipc::PoseSubscriber, d: Durati
     (n, gap.max(last.elapsed()))
 }
 
+/// The second card of `demo --objects 2`, its photo-model written into the scratch folder.
+fn second_object() -> (String, String) {
+    let out = scratch("bridge").join("hopper.model");
+    let status = photopose()
+        .args(["model", "--photo"])
+        .arg(data("photos/hopper.jpg"))
+        .args(["--box", "100,20,340,480", "--output"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success(), "photopose model failed");
+    let scene = repo("config/scenes/hopper-beside.toml").display().to_string();
+    (format!("hopper={}", out.display()), scene)
+}
+
 #[test]
 fn a_ros2_subscriber_receives_every_pose_bit_for_bit() {
     let _serial = serial();
     if !python_ready("a_ros2_subscriber_receives_every_pose_bit_for_bit") {
         return;
     }
+    // Two objects, so that each gets its own topics when it first appears.
+    let (hopper, second_card) = second_object();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
     let client = Client::spawn(&endpoint, 10.0);
     let _bridge = bridge(&endpoint);
-    let _estimator = estimator();
-    let _capture = spawn(&["capture", "--source", "synthetic"]);
+    let rocket = format!("rocket={}", model());
+    let _estimator = spawn(&["estimator", "--model", &rocket, "--model", &hopper]);
+    let first = format!("synthetic:{}", repo("config/scenes/pair.toml").display());
+    let _capture = spawn(&["capture", "--source", &first, "--card", &second_card]);
     let summary = client.finish();
     println!("ros2_pose_client.py: {summary}");
     let share = summary["share"].as_f64().unwrap();
@@ -163,6 +182,8 @@ fn a_ros2_subscriber_receives_every_pose_bit_for_bit() {
     assert_eq!(summary["bit_equal"], true, "{summary}");
     assert_eq!(summary["liveliness"]["ok"], true, "{summary}");
     assert!(summary["status_messages_checked"].as_u64().unwrap() > 0, "{summary}");
+    assert_eq!(summary["objects"], serde_json::json!(["hopper", "rocket"]), "{summary}");
+    assert_eq!(summary["liveliness"]["publisher_tokens"], 4, "{summary}");
     println!(
         "bridge: {} of {} poses over Zenoh ({:.1} %), bit-equal; added latency p50 {:.2} ms, p99 {:.2} ms",
         summary["paired"],
