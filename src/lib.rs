@@ -9,8 +9,11 @@
 //! intrinsics, the stereo rig) and [`vision`] (colour, frames, lookup images). [`render`]
 //! is the synthetic camera, [`detect`] finds the object in the photo, [`config`]
 //! assembles each domain's settings, [`cli`] holds the `photopose` commands, and
-//! [`viewer`] logs what the tracker sees to Rerun.
+//! [`viewer`] logs what the tracker sees to Rerun; `bridge` (feature `zenoh`) publishes
+//! the poses to ROS 2 over Zenoh.
 
+#[cfg(feature = "zenoh")]
+pub mod bridge;
 pub mod camera;
 pub mod capture;
 pub mod cli;

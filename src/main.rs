@@ -39,6 +39,9 @@ enum Command {
     /// Log frames, poses and truth of the running service to Rerun (file or viewer).
     #[cfg(feature = "rerun")]
     Viewer(cli::viewer::ViewerArgs),
+    /// Publish each object's pose and status to ROS 2 over Zenoh (rmw_zenoh).
+    #[cfg(feature = "zenoh")]
+    Bridge(cli::bridge::BridgeArgs),
 }
 
 fn main() -> ExitCode {
@@ -61,6 +64,8 @@ fn main() -> ExitCode {
         Command::Latency(a) => cli::latency::run(a),
         #[cfg(feature = "rerun")]
         Command::Viewer(a) => cli::viewer::run(a),
+        #[cfg(feature = "zenoh")]
+        Command::Bridge(a) => cli::bridge::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

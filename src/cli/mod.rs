@@ -1,6 +1,8 @@
 //! The `photopose` command line: one module per subcommand.
 
 pub mod bench;
+#[cfg(feature = "zenoh")]
+pub mod bridge;
 pub mod capture;
 pub mod controller;
 pub mod demo;
