@@ -2,7 +2,9 @@
 //! its own. Tracking frames run on the caller's thread, one object after the other. With
 //! more than one object, an object that must be (re)acquired is searched on a thread of
 //! its own, so the others go on being tracked on every frame meanwhile; it rejoins
-//! when its search is done.
+//! when its search is done. One acquisition runs at a time, with all fitness workers:
+//! two at once would each take twice as long, and an acquisition's answer is only as
+//! good as it is fresh.
 
 use std::thread::JoinHandle;
 
@@ -45,23 +47,36 @@ impl Objects {
     }
 
     /// Takes back the trackers whose acquisition has finished, then has every tracker
-    /// that is here read the frame. Fails, for every object, when the frame is unusable.
+    /// that is here read the frame (but one that would acquire while another acquisition
+    /// runs: it waits). Fails, for every object, when the frame is unusable.
     pub fn prepare(&mut self, frame: &SbsBytes) -> Result<(), FrameError> {
+        self.reclaim();
+        let mut busy = self.slots.iter().any(|s| matches!(s, Slot::Away(_)));
         for slot in &mut self.slots {
-            if matches!(slot, Slot::Away(handle) if handle.is_finished()) {
-                let Slot::Away(handle) = std::mem::replace(slot, Slot::Failed) else {
-                    continue;
-                };
+            let Slot::Here(tracker) = slot else { continue };
+            if self.background && busy && tracker.will_acquire() {
+                tracker.skip();
+                continue;
+            }
+            tracker.prepare(frame)?;
+            busy |= self.background && tracker.acquiring();
+        }
+        Ok(())
+    }
+
+    /// Takes back the trackers whose acquisition thread has finished.
+    fn reclaim(&mut self) {
+        for slot in &mut self.slots {
+            if !matches!(slot, Slot::Away(handle) if handle.is_finished()) {
+                continue;
+            }
+            if let Slot::Away(handle) = std::mem::replace(slot, Slot::Failed) {
                 match handle.join() {
                     Ok(tracker) => *slot = Slot::Here(tracker),
                     Err(_) => tracing::error!("an acquisition thread panicked; its object is dropped"),
                 }
             }
-            if let Slot::Here(tracker) = slot {
-                tracker.prepare(frame)?;
-            }
         }
-        Ok(())
     }
 
     /// Searches the prepared frame: each object's outcome, in order.

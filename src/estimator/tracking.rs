@@ -370,6 +370,16 @@ impl StreamTracker {
         })
     }
 
+    /// Leaves this frame out: the next step gives no estimate.
+    pub fn skip(&mut self) {
+        self.ready = None;
+    }
+
+    /// Whether the next frame will go to a (one-shot) acquisition.
+    pub fn will_acquire(&self) -> bool {
+        self.tracker.prediction().is_none()
+    }
+
     /// Whether the prepared frame is for a (one-shot) acquisition, not for tracking.
     pub fn acquiring(&self) -> bool {
         matches!(self.ready, Some(Ready::Acquire(_)))
