@@ -27,8 +27,10 @@ fn latency_measures_the_running_pipeline() {
     let r = latency_json(&["--seconds", "3"]);
     println!("latency: {r}");
     let n = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("no number {k} in {r}"));
-    // 3 s of a 60 fps camera (a busy machine may render fewer), a pose for nearly every frame.
-    assert!((120.0..=200.0).contains(&n("frames")), "{} frames", n("frames"));
+    // 3 s of a 60 fps camera, a pose for nearly every frame. A busy machine may render
+    // fewer; a camera that fell behind while the acquisition took both cores sends the
+    // frames it owes back to back, so up to a second's worth more can arrive.
+    assert!((120.0..=240.0).contains(&n("frames")), "{} frames", n("frames"));
     assert!(n("poses") >= 0.9 * n("frames"), "{} poses", n("poses"));
     assert!(
         n("dropped_frames") <= 0.05 * n("frames"),

@@ -42,8 +42,8 @@ fn two_objects_are_tracked_together_each_against_its_own_truth() {
     let first = format!("synthetic:{}", repo(PAIR_SCENE).display());
     let second = repo(SECOND_SCENE).display().to_string();
     let _capture = spawn(&["capture", "--source", &first, "--speed", "150", "--card", &second]);
-    w.collect(Duration::from_secs(20));
-    assert!(w.sets.len() > 300, "only {} pose sets", w.sets.len());
+    w.collect(Duration::from_secs(30));
+    assert!(w.sets.len() > 600, "only {} pose sets", w.sets.len());
     for set in &w.sets {
         let names: Vec<&str> = set.objects().iter().map(|o| o.name()).collect();
         assert_eq!(names, ["rocket", "hopper"], "every set carries both, in --model order");
