@@ -15,9 +15,8 @@ mod common;
 #[path = "service/process.rs"]
 mod process;
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::process::{Command, Stdio};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use photopose::bridge::msgs::{diagnostic_status, pose_stamped, Stamp, DIAGNOSTIC_STATUS, POSE_STAMPED};
@@ -25,7 +24,7 @@ use photopose::transport::ipc::{receive_poses, Ipc};
 use photopose::transport::messages::{PoseMsg, POSES_SERVICE};
 
 use crate::common::{data, repo, scratch};
-use crate::process::{estimator, model, photopose, serial, spawn, Running};
+use crate::process::{estimator, model, photopose, serial, spawn, Piped, Running};
 
 /// Whether the tests run under CI (`CI` set, and not `false` or `0`).
 fn under_ci() -> bool {
@@ -69,16 +68,12 @@ fn free_port() -> u16 {
 }
 
 /// `tools/ros2_pose_client.py` listening on `endpoint`, its output read by threads.
-struct Client {
-    process: Running,
-    stdout: JoinHandle<String>,
-    stderr: JoinHandle<String>,
-}
+struct Client(Piped);
 
 impl Client {
     fn spawn(endpoint: &str, seconds: f64) -> Self {
-        let mut child = Command::new("python3")
-            .arg(repo("tools/ros2_pose_client.py"))
+        let mut cmd = Command::new("python3");
+        cmd.arg(repo("tools/ros2_pose_client.py"))
             .args([
                 "--listen",
                 endpoint,
@@ -87,32 +82,13 @@ impl Client {
                 &seconds.to_string(),
             ])
             .args(["--wait", "30"])
-            .current_dir(repo(""))
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("python3");
-        let read = |mut pipe: Box<dyn Read + Send>| {
-            std::thread::spawn(move || {
-                let mut text = String::new();
-                let _ = pipe.read_to_string(&mut text);
-                text
-            })
-        };
-        let stdout = read(Box::new(child.stdout.take().unwrap()));
-        let stderr = read(Box::new(child.stderr.take().unwrap()));
-        Self {
-            process: Running(child),
-            stdout,
-            stderr,
-        }
+            .current_dir(repo(""));
+        Self(Piped::spawn(&mut cmd))
     }
 
     /// Waits for the client and returns its JSON summary, asserting it succeeded.
-    fn finish(mut self) -> serde_json::Value {
-        let status = self.process.0.wait().unwrap();
-        let (stdout, stderr) = (self.stdout.join().unwrap(), self.stderr.join().unwrap());
+    fn finish(self) -> serde_json::Value {
+        let (status, stdout, stderr) = self.0.finish();
         assert!(
             status.success(),
             "ros2_pose_client.py: {status}\nstderr: {stderr}\nstdout: {stdout}"

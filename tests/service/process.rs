@@ -192,3 +192,43 @@ pub fn ipc_entries() -> Vec<(PathBuf, u32)> {
     out.sort();
     out
 }
+
+/// A child whose stdout and stderr are read by threads while it runs (the Python clients).
+pub struct Piped {
+    pub process: Running,
+    stdout: std::thread::JoinHandle<String>,
+    stderr: std::thread::JoinHandle<String>,
+}
+
+impl Piped {
+    /// Spawns `cmd` with stdin closed and both outputs piped.
+    pub fn spawn(cmd: &mut Command) -> Self {
+        use std::io::Read;
+        let mut child = cmd
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("spawn");
+        let read = |mut pipe: Box<dyn Read + Send>| {
+            std::thread::spawn(move || {
+                let mut text = String::new();
+                let _ = pipe.read_to_string(&mut text);
+                text
+            })
+        };
+        let stdout = read(Box::new(child.stdout.take().unwrap()));
+        let stderr = read(Box::new(child.stderr.take().unwrap()));
+        Self {
+            process: Running(child),
+            stdout,
+            stderr,
+        }
+    }
+
+    /// Waits for the child: its exit status, stdout and stderr.
+    pub fn finish(mut self) -> (std::process::ExitStatus, String, String) {
+        let status = self.process.0.wait().expect("exit status");
+        (status, self.stdout.join().unwrap(), self.stderr.join().unwrap())
+    }
+}

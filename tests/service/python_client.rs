@@ -3,28 +3,23 @@
 //! without it the test fails under CI (`CI` set) and is skipped, loudly, elsewhere.
 
 use std::collections::HashMap;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::process::{Command, Stdio};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use photopose::transport::ipc::{receive_poses, send_poses, Ipc};
 use photopose::transport::messages::{monotonic_ns, ObjectName, PoseMsg, PoseSet, TRUTH_SERVICE};
 
 use crate::common::repo;
-use crate::process::{serial, spawn, Running};
+use crate::process::{serial, spawn, Piped};
 
 /// `tools/pose_client.py --json` on `service`, its stdout and stderr read by threads.
-struct PythonClient {
-    process: Running,
-    stdout: JoinHandle<String>,
-    stderr: JoinHandle<String>,
-}
+struct PythonClient(Piped);
 
 impl PythonClient {
     fn spawn(service: &str, count: usize) -> Self {
-        let mut child = Command::new("python3")
-            .arg(repo("tools/pose_client.py"))
+        let mut cmd = Command::new("python3");
+        cmd.arg(repo("tools/pose_client.py"))
             .args([
                 "--service",
                 service,
@@ -34,38 +29,18 @@ impl PythonClient {
                 "--seconds",
                 "20",
             ])
-            .current_dir(repo(""))
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("python3");
-        let read = |mut pipe: Box<dyn Read + Send>| {
-            std::thread::spawn(move || {
-                let mut text = String::new();
-                let _ = pipe.read_to_string(&mut text);
-                text
-            })
-        };
-        let stdout = read(Box::new(child.stdout.take().unwrap()));
-        let stderr = read(Box::new(child.stderr.take().unwrap()));
-        Self {
-            process: Running(child),
-            stdout,
-            stderr,
-        }
+            .current_dir(repo(""));
+        Self(Piped::spawn(&mut cmd))
     }
 
     /// Whether the client has exited.
     fn done(&mut self) -> bool {
-        self.process.0.try_wait().expect("python3 status").is_some()
+        self.0.process.0.try_wait().expect("python3 status").is_some()
     }
 
     /// Waits for the client; its output lines, after asserting it succeeded.
-    fn finish(mut self) -> Vec<String> {
-        let status = self.process.0.wait().expect("python3 status");
-        let stdout = self.stdout.join().unwrap();
-        let stderr = self.stderr.join().unwrap();
+    fn finish(self) -> Vec<String> {
+        let (status, stdout, stderr) = self.0.finish();
         assert!(
             status.success(),
             "pose_client.py: {status}\nstderr: {stderr}\nstdout: {stdout}"
