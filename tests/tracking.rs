@@ -14,7 +14,7 @@ use photopose::cli::estimator::pose_msg;
 use photopose::cli::report::stats::Samples;
 use photopose::config::Config;
 use photopose::estimator::model::PhotoModel;
-use photopose::estimator::tracking::{Estimate, StreamTracker, TrackState};
+use photopose::estimator::tracking::{Estimate, StreamTracker, TrackState, RELOCATE_GENERATIONS};
 use photopose::render::{self, Background, Card, Scene};
 use photopose::transport::messages::PoseMsg;
 use photopose::transport::messages::Status;
@@ -107,6 +107,11 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
         if i == 0 {
             assert!(err < 10.0, "acquisition ends {err:.1} mm off");
             assert_eq!(est.generations as usize, r.config.tracking.acquire_generations);
+        } else if i == 1 {
+            // The acquired model is relocated on the first frame after it.
+            assert_eq!(est.generations as usize, RELOCATE_GENERATIONS);
+            assert_eq!(est.state, TrackState::Tracking, "relocation: F {:.3}", est.fitness.f);
+            errors.push(err);
         } else {
             assert_eq!(est.generations as usize, r.config.tracking.generations_per_frame);
             assert_eq!(est.state, TrackState::Tracking, "frame {i}: F {:.3}", est.fitness.f);
@@ -169,10 +174,13 @@ fn a_pose_below_the_fitness_floor_is_lost_never_tracking() {
 }
 
 /// The estimator's timeline on the synthetic camera at 150 mm/s: the acquisition on frame
-/// 0 takes about half a second, so tracking resumes 24 to 40 frames later, far from the
-/// acquired pose. Whatever the gap, the population finds the whole card again: half a
-/// second later the pose is within 5 mm and the size within 5 %, and it is `tracking`.
-/// (A model that slipped onto part of the card used to stay there, 15 mm off.)
+/// 0 takes half a second to two seconds (a busy machine), so tracking resumes 24 to 120
+/// frames later, up to 300 mm from the acquired pose. Whatever the gap, the acquired
+/// model is relocated on the first frame after it, mostly `tracking` at once, and never
+/// `tracking` when more than 20 mm off; half a second later the pose is within 5 mm and
+/// the size within 5 %, `tracking`. (A
+/// model that slipped onto part of the card used to stay there, 15 mm off; without the
+/// relocation, a gap of a second lost the card.)
 #[test]
 fn tracking_recovers_the_whole_card_after_the_acquisition_gap() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -181,15 +189,16 @@ fn tracking_recovers_the_whole_card_after_the_acquisition_gap() {
     let mut camera =
         SyntheticSource::open(&root.join("config/scenes/rocket.toml"), &config, 60.0, 150.0).expect("scene");
     let g = camera.geometry();
-    let frames: Vec<(Vec<u8>, Truth)> = (0..100)
+    let frames: Vec<(Vec<u8>, Truth)> = (0..160)
         .map(|_| {
             let mut buf = vec![0u8; g.frame_len()];
             let info = camera.fill(&mut buf).expect("render").expect("a frame");
             (buf, info.truth[0].expect("synthetic truth"))
         })
         .collect();
-    let mut summary: Vec<String> = Vec::new();
-    for gap in 24..=40 {
+    let (mut summary, mut relocated) = (Vec::new(), 0);
+    let gaps = [24, 28, 32, 36, 40, 60, 90, 120];
+    for gap in gaps {
         let mut tracker = StreamTracker::new(model.clone(), config.clone());
         let (mut errors, mut size_errors, mut statuses) = (Vec::new(), Vec::new(), Vec::new());
         for (i, (bytes, truth)) in frames.iter().enumerate() {
@@ -205,15 +214,26 @@ fn tracking_recovers_the_whole_card_after_the_acquisition_gap() {
             };
             tracker.prepare(&frame).expect("HD frame");
             let est = tracker.step().expect("a prepared frame");
+            let error = (est.best.position - truth.hand_from_model.translation.vector).norm();
+            // Honest from the first frame after the gap: `tracking` only when right (within
+            // 20 mm, the robot's tolerance in the tracking success rate).
+            assert!(
+                i < gap || error <= 20.0 || est.state != TrackState::Tracking,
+                "gap {gap}, frame {i}: {error:.1} mm off called tracking"
+            );
+            if i == gap {
+                relocated += usize::from(est.state == TrackState::Tracking);
+                summary.push(format!("gap {gap}: relocated {error:.1} mm off, {:?}", est.state));
+            }
             if i >= gap + 30 {
-                errors.push((est.best.position - truth.hand_from_model.translation.vector).norm());
+                errors.push(error);
                 let length = est.best.size_mm(model.l_p, model.b_p)[0];
                 size_errors.push((length / truth.size_mm[0] - 1.0).abs());
                 statuses.push(est.state);
             }
         }
         let (error, size_error) = (Samples::new(errors).mean(), Samples::new(size_errors).mean());
-        summary.push(format!("gap {gap}: {error:.1} mm, size {:.1} %", 100.0 * size_error));
+        summary.push(format!("0.5 s later {error:.1} mm, size {:.1} %", 100.0 * size_error));
         assert!(
             error <= 5.0 && size_error <= 0.05,
             "tracking resumed {gap} frames after the acquisition: still {error:.1} mm and {:.1} % off after 0.5 s",
@@ -224,7 +244,14 @@ fn tracking_recovers_the_whole_card_after_the_acquisition_gap() {
             "gap {gap}: {statuses:?}"
         );
     }
-    println!("mean error 0.5 s after resuming: {}", summary.join(", "));
+    println!("{}", summary.join("\n"));
+    // Measured: 7 of 8 (gap 90 relocated 31 mm off, nearer and smaller, rightly
+    // `searching` for 3 frames, then tracked).
+    assert!(
+        relocated >= 6,
+        "{relocated} of {} relocations tracking at once",
+        gaps.len()
+    );
 }
 
 /// Every number of a pose message (frame id, capture time, generations, status, then

@@ -2,7 +2,9 @@
 //! of the previous frame is moved by the predicted motion, re-scored on the new frame
 //! and evolved for a few generations; the best individual is the frame's pose. When
 //! the fitness stays low the search widens (immigrants), and after a while the object
-//! is acquired afresh with the one-shot robust search.
+//! is acquired afresh with the one-shot robust search. An acquisition's frame is about a
+//! second old when its search ends, so the next frame first relocates the acquired model
+//! ([`relocate`](crate::estimator::ga::relocate)) before tracking resumes.
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -14,7 +16,7 @@ use crate::camera::StereoRig;
 use crate::config::Config;
 use crate::estimator::fitness::{Fitness, PointSet, Scorer};
 use crate::estimator::ga::live::{Breeding, EdgeMoves, LivePopulation};
-use crate::estimator::ga::{Bounds, Genes, Problem, GENES};
+use crate::estimator::ga::{relocate, Bounds, Genes, Problem, GENES};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::oneshot::{scorer_for, Prepared};
 use crate::estimator::pose::PoseSize;
@@ -52,6 +54,16 @@ pub enum TrackState {
 const EDGE_MOVES: f64 = 0.25;
 const EDGE_STEP: f64 = 0.03;
 
+/// Generations of the tracking GA after a relocation, on the whole frame at full
+/// resolution: the orientation and size that changed during the acquisition settle.
+pub const RELOCATE_GENERATIONS: usize = 12;
+
+/// Share of the acquisition's `F` a frame needs to be `tracking` after a relocation the
+/// verdict did not call found. A model nearer and smaller than the object (or farther
+/// and larger) matches the left image as well; only the stereo term tells them apart,
+/// and 30 mm off in depth it still scores 0.88 of the truth.
+const DOUBT_SHARE: f64 = 0.95;
+
 /// A GA population that lives from frame to frame.
 pub struct Tracker {
     settings: TrackingSettings,
@@ -72,6 +84,11 @@ pub struct Tracker {
     frames: u64,
     /// The last acquisition's pose was judged not found: acquire afresh.
     rejected: bool,
+    /// The population was acquired on an older frame: relocate it on the next one.
+    relocating: bool,
+    /// The last relocation was not judged found: tracking needs [`DOUBT_SHARE`] of the
+    /// acquisition's `F` until a frame is tracked.
+    doubted: bool,
 }
 
 impl Tracker {
@@ -91,6 +108,8 @@ impl Tracker {
             velocity: [0.0; GENES],
             frames: 0,
             rejected: false,
+            relocating: false,
+            doubted: false,
         }
     }
 
@@ -100,15 +119,22 @@ impl Tracker {
         self.rejected = true;
     }
 
+    /// The last frame's pose was not judged found although its fitness may be high: the
+    /// next frames search more widely, and it takes a tracked frame to say `tracking`.
+    pub fn doubt(&mut self) {
+        self.searching = self.searching.max(1);
+        self.doubted = true;
+    }
+
     /// True until the first acquisition, and after the object was lost.
     pub fn needs_acquisition(&self) -> bool {
         self.rejected || self.pop.is_empty() || self.searching > self.settings.lost_after_frames
     }
 
     /// The genes expected on the next frame (last best moved by the estimated velocity);
-    /// `None` while the object has to be acquired.
+    /// `None` while the object has to be acquired or relocated (on the whole frame).
     pub fn prediction(&self) -> Option<Genes> {
-        if self.needs_acquisition() {
+        if self.needs_acquisition() || self.relocating {
             return None;
         }
         self.last_best
@@ -119,9 +145,13 @@ impl Tracker {
     pub fn step(&mut self, problem: &Problem) -> Estimate {
         self.frames += 1;
         let acquiring = self.needs_acquisition();
+        let relocating = !acquiring && self.relocating;
         let generations = if acquiring {
             self.acquire(problem);
             self.settings.acquire_generations
+        } else if relocating {
+            self.relocate(problem);
+            RELOCATE_GENERATIONS
         } else {
             self.track(problem);
             self.settings.generations_per_frame
@@ -135,6 +165,8 @@ impl Tracker {
             self.velocity = std::array::from_fn(|i| 0.5 * (best[i] - last[i]));
         }
         self.last_best = Some(best);
+        // A relocation is judged against the acquisition's fitness, which the verdict
+        // confirmed: the same object, as well matched.
         let state = self.judge(fitness.f, acquiring);
         Estimate {
             best: problem.bounds.decode(&best),
@@ -148,8 +180,14 @@ impl Tracker {
     /// acquisition), counting the frames in a row that were not tracked.
     fn judge(&mut self, f: f64, acquired: bool) -> TrackState {
         self.best_f = if acquired { f } else { self.best_f.max(f) };
-        let tracked = f >= self.settings.min_fitness && f >= self.settings.min_fitness_share * self.best_f;
+        let share = if self.doubted {
+            DOUBT_SHARE
+        } else {
+            self.settings.min_fitness_share
+        };
+        let tracked = f >= self.settings.min_fitness && f >= share * self.best_f;
         self.searching = if tracked { 0 } else { self.searching + 1 };
+        self.doubted &= !tracked;
         // Below the floor (or NaN) the pose is never called tracked.
         if f.is_nan() || f < self.settings.lost_fitness {
             TrackState::Lost
@@ -177,7 +215,24 @@ impl Tracker {
         let (n, sigma) = (self.settings.population, self.settings.sigma);
         self.pop.seed_around(problem, best, n, sigma, &mut self.rng);
         self.rejected = false;
+        self.relocating = true;
+        self.doubted = false;
         self.searching = 0;
+        self.last_best = None;
+        self.velocity = [0.0; GENES];
+    }
+
+    /// Finds the acquired model again on a newer frame (translated, see
+    /// [`relocate`](relocate::relocate)), then lets the population settle around it.
+    fn relocate(&mut self, problem: &Problem) {
+        self.relocating = false;
+        let Some((best, _)) = self.pop.best() else {
+            return;
+        };
+        let (moved, _) = relocate::relocate(problem, &problem.bounds.decode(&best), self.box_px);
+        let (n, sigma) = (self.settings.population, self.settings.sigma);
+        self.pop.seed_around(problem, moved, n, sigma, &mut self.rng);
+        self.evolve(problem, RELOCATE_GENERATIONS, false);
         self.last_best = None;
         self.velocity = [0.0; GENES];
     }
@@ -185,10 +240,14 @@ impl Tracker {
     /// Predicts, re-scores and evolves the population on a new frame.
     fn track(&mut self, problem: &Problem) {
         self.pop.shift(problem, &self.velocity);
-        let searching = self.searching > 0;
+        self.evolve(problem, self.settings.generations_per_frame, self.searching > 0);
+    }
+
+    /// Evolves the population `generations` generations; `searching` widens the mutation
+    /// and lets immigrants in.
+    fn evolve(&mut self, problem: &Problem, generations: usize, searching: bool) {
         let breeding = Breeding {
             ga: &self.ga,
-            // Searching widens the mutation too.
             sigma: self.settings.sigma * if searching { 4.0 } else { 1.0 },
             immigrants: if searching { self.settings.immigrants } else { 0.0 },
             edge_moves: EdgeMoves {
@@ -197,7 +256,6 @@ impl Tracker {
                 box_px: self.box_px,
             },
         };
-        let generations = self.settings.generations_per_frame;
         self.pop.evolve(problem, generations, &breeding, &mut self.rng);
     }
 }
@@ -359,11 +417,19 @@ impl StreamTracker {
                 self.tracker.step(&problem)
             }
             Ready::Acquire(prepared) => {
+                let acquiring = self.tracker.needs_acquisition();
                 let mut estimate = self.tracker.step(&prepared.problem(&self.config));
-                // The one-shot verdict: a pose it does not call found is not tracked.
+                // The one-shot verdict: a pose it does not call found is not tracked. A
+                // rejected acquisition is searched afresh; a doubtful relocation goes on
+                // being tracked, searching more widely, until its fitness says found or
+                // it is lost.
                 if !prepared.verdict(&estimate.best).found {
                     estimate.state = TrackState::Searching;
-                    self.tracker.reject_acquisition();
+                    if acquiring {
+                        self.tracker.reject_acquisition();
+                    } else {
+                        self.tracker.doubt();
+                    }
                 }
                 estimate
             }
@@ -416,6 +482,19 @@ mod tests {
         assert_eq!(statuses(&[(1.95, true), (2.2, false), (1.85, false)]), [T, T, S]);
         // A fresh acquisition is the new reference, even when it is lower.
         assert_eq!(statuses(&[(1.95, true), (1.5, true), (1.45, false)]), [T, T, T]);
+    }
+
+    #[test]
+    fn after_a_doubtful_relocation_tracking_needs_nearly_the_acquisitions_fitness() {
+        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        assert_eq!(tracker.judge(1.95, true), T);
+        // 1.75 is 0.90 of the acquisition's F: tracked unless in doubt.
+        assert_eq!(tracker.judge(1.75, false), T);
+        tracker.doubt();
+        assert_eq!(tracker.judge(1.75, false), S);
+        assert_eq!(tracker.judge(1.86, false), T);
+        // The doubt ends with a tracked frame.
+        assert_eq!(tracker.judge(1.75, false), T);
     }
 
     #[test]

@@ -23,15 +23,17 @@ fn latency_measures_the_running_pipeline() {
     let _estimator = estimator();
     let _capture = spawn(&["capture"]);
     let mut w = Watcher::new("photopose-test-latency");
-    assert!(w.until_pose(Duration::from_secs(8)), "no pose");
+    assert!(w.until_tracking(Duration::from_secs(12)), "no tracking pose");
     let r = latency_json(&["--seconds", "3"]);
     println!("latency: {r}");
     let n = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("no number {k} in {r}"));
-    // 3 s of a 60 fps camera, a pose for nearly every frame. A busy machine may render
-    // fewer; a camera that fell behind while the acquisition took both cores sends the
-    // frames it owes back to back, so up to a second's worth more can arrive.
+    // 3 s of a 60 fps camera, a pose for nearly every frame that no (re)acquisition
+    // skipped (one may still happen in the window when the track is lost). A busy machine
+    // may render fewer; a camera that fell behind while the acquisition took both cores
+    // sends the frames it owes back to back, so up to a second's worth more can arrive.
     assert!((120.0..=240.0).contains(&n("frames")), "{} frames", n("frames"));
-    assert!(n("poses") >= 0.9 * n("frames"), "{} poses", n("poses"));
+    let tracked = n("frames") - n("skipped_while_acquiring");
+    assert!(n("poses") >= 0.9 * tracked, "{} poses for {tracked} frames", n("poses"));
     assert!(
         n("dropped_frames") <= 0.05 * n("frames"),
         "{} dropped",

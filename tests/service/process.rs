@@ -9,7 +9,7 @@ use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use photopose::transport::ipc::{receive_poses, Ipc, PoseSubscriber};
-use photopose::transport::messages::{PoseMsg, PoseSet, POSES_SERVICE, TRUTH_SERVICE};
+use photopose::transport::messages::{PoseMsg, PoseSet, Status, POSES_SERVICE, TRUTH_SERVICE};
 
 use crate::common::{data, repo};
 
@@ -130,6 +130,26 @@ impl Watcher {
         while Instant::now() < end {
             self.drain();
             if self.got.len() > before {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        false
+    }
+
+    /// Waits at most `d` for a pose of a tracking frame (status `tracking`, no more
+    /// generations than a tracking frame runs): the acquisition and the relocation after
+    /// it are over. True if one came.
+    pub fn until_tracking(&mut self, d: Duration) -> bool {
+        let per_frame = photopose::config::Config::load(None)
+            .expect("default configuration")
+            .tracking
+            .generations_per_frame as u32;
+        let end = Instant::now() + d;
+        while Instant::now() < end {
+            self.drain();
+            let last = self.got.last().map(|(p, _)| p);
+            if last.is_some_and(|p| p.status == Status::Tracking as u32 && p.generations <= per_frame) {
                 return true;
             }
             std::thread::sleep(Duration::from_millis(2));
