@@ -4,12 +4,15 @@
 //! its own, so the others go on being tracked on every frame meanwhile; it rejoins
 //! when its search is done. One acquisition runs at a time, with all fitness workers:
 //! two at once would each take twice as long, and an acquisition's answer is only as
-//! good as it is fresh.
+//! good as it is fresh. The thread also reads the frame (a copy: the camera's sample is
+//! released at once), which takes 50–100 ms at HD; the relocation after an acquisition
+//! runs the same way.
 
 use std::thread::JoinHandle;
 
 use crate::estimator::tracking::{Estimate, FrameError, StreamTracker};
 use crate::vision::lookup::SbsBytes;
+use crate::vision::PixelFormat;
 
 /// What one object gave on a frame.
 #[derive(Debug, Clone, Copy)]
@@ -20,10 +23,43 @@ pub enum Outcome {
     Acquiring,
 }
 
+/// A copy of a frame for a search on another thread.
+struct OwnedFrame {
+    bytes: Vec<u8>,
+    width: usize,
+    height: usize,
+    row_stride: usize,
+    format: PixelFormat,
+}
+
+impl OwnedFrame {
+    fn copy(frame: &SbsBytes) -> Self {
+        Self {
+            bytes: frame.bytes.to_vec(),
+            width: frame.width,
+            height: frame.height,
+            row_stride: frame.row_stride,
+            format: frame.format,
+        }
+    }
+
+    fn view(&self) -> SbsBytes<'_> {
+        SbsBytes {
+            bytes: &self.bytes,
+            width: self.width,
+            height: self.height,
+            row_stride: self.row_stride,
+            format: self.format,
+        }
+    }
+}
+
 /// Where an object's tracker is.
 enum Slot {
     /// Ready for the next frame.
     Here(Box<StreamTracker>),
+    /// To be (re)acquired or relocated on this copy of the frame, in the background.
+    Due(Box<StreamTracker>, OwnedFrame),
     /// Acquiring on its own thread; the thread hands the tracker back.
     Away(JoinHandle<Box<StreamTracker>>),
     /// Its acquisition thread died (a bug): the object is not estimated any more.
@@ -47,19 +83,27 @@ impl Objects {
     }
 
     /// Takes back the trackers whose acquisition has finished, then has every tracker
-    /// that is here read the frame (but one that would acquire while another acquisition
-    /// runs: it waits). Fails, for every object, when the frame is unusable.
+    /// that is here read the frame. In the background, one that must acquire keeps a copy
+    /// of the frame instead, or waits while another acquisition runs. Fails, for every
+    /// object, when the frame is unusable.
     pub fn prepare(&mut self, frame: &SbsBytes) -> Result<(), FrameError> {
         self.reclaim();
         let mut busy = self.slots.iter().any(|s| matches!(s, Slot::Away(_)));
         for slot in &mut self.slots {
             let Slot::Here(tracker) = slot else { continue };
-            if self.background && busy && tracker.will_acquire() {
-                tracker.skip();
+            if !(self.background && tracker.will_acquire()) {
+                tracker.prepare(frame)?;
                 continue;
             }
-            tracker.prepare(frame)?;
-            busy |= self.background && tracker.acquiring();
+            tracker.skip();
+            tracker.check(frame)?;
+            if !busy {
+                let Slot::Here(tracker) = std::mem::replace(slot, Slot::Failed) else {
+                    continue;
+                };
+                *slot = Slot::Due(tracker, OwnedFrame::copy(frame));
+                busy = true;
+            }
         }
         Ok(())
     }
@@ -81,23 +125,12 @@ impl Objects {
 
     /// Searches the prepared frame: each object's outcome, in order.
     pub fn step(&mut self) -> Vec<Outcome> {
-        let background = self.background;
         self.slots
             .iter_mut()
             .map(|slot| match slot {
-                Slot::Here(tracker) if background && tracker.acquiring() => {
-                    let Slot::Here(mut tracker) = std::mem::replace(slot, Slot::Failed) else {
-                        return Outcome::Acquiring;
-                    };
-                    let spawned = std::thread::Builder::new()
-                        .name("photopose-acquire".into())
-                        .spawn(move || {
-                            tracker.step();
-                            tracker
-                        });
-                    match spawned {
-                        Ok(handle) => *slot = Slot::Away(handle),
-                        Err(e) => tracing::error!("cannot start an acquisition thread: {e}"),
+                Slot::Due(..) => {
+                    if let Slot::Due(tracker, frame) = std::mem::replace(slot, Slot::Failed) {
+                        *slot = Self::away(tracker, frame);
                     }
                     Outcome::Acquiring
                 }
@@ -105,5 +138,25 @@ impl Objects {
                 Slot::Away(_) | Slot::Failed => Outcome::Acquiring,
             })
             .collect()
+    }
+
+    /// `tracker` reading `frame` and searching it on a thread of its own.
+    fn away(mut tracker: Box<StreamTracker>, frame: OwnedFrame) -> Slot {
+        let spawned = std::thread::Builder::new()
+            .name("photopose-acquire".into())
+            .spawn(move || {
+                match tracker.prepare(&frame.view()) {
+                    Ok(()) => _ = tracker.step(),
+                    Err(e) => tracing::warn!("acquisition frame: {e}"),
+                }
+                tracker
+            });
+        match spawned {
+            Ok(handle) => Slot::Away(handle),
+            Err(e) => {
+                tracing::error!("cannot start an acquisition thread: {e}");
+                Slot::Failed
+            }
+        }
     }
 }

@@ -143,6 +143,18 @@ impl Tracker {
 
     /// Processes one frame.
     pub fn step(&mut self, problem: &Problem) -> Estimate {
+        self.step_judged(problem, None)
+    }
+
+    /// [`Tracker::step`] on a whole frame, whose status is judged on `tracking_f` of the
+    /// best genes: the `F` tracking frames would give it (they read fewer points, which
+    /// for a finely textured photo scores lower than the whole model). The tracking
+    /// frames that follow compare their `F` with it.
+    pub fn step_whole(&mut self, problem: &Problem, tracking_f: &dyn Fn(&Genes) -> f64) -> Estimate {
+        self.step_judged(problem, Some(tracking_f))
+    }
+
+    fn step_judged(&mut self, problem: &Problem, tracking_f: Option<&dyn Fn(&Genes) -> f64>) -> Estimate {
         self.frames += 1;
         let acquiring = self.needs_acquisition();
         let relocating = !acquiring && self.relocating;
@@ -167,7 +179,7 @@ impl Tracker {
         self.last_best = Some(best);
         // A relocation is judged against the acquisition's fitness, which the verdict
         // confirmed: the same object, as well matched.
-        let state = self.judge(fitness.f, acquiring);
+        let state = self.judge(tracking_f.map_or(fitness.f, |f| f(&best)), acquiring);
         Estimate {
             best: problem.bounds.decode(&best),
             fitness,
@@ -323,7 +335,7 @@ impl FrameError {
 enum Ready {
     /// Lookup regions around the prediction were refilled from the frame.
     Regions,
-    /// The whole frame, for a one-shot acquisition.
+    /// The whole frame, for a one-shot acquisition or the relocation after it.
     Acquire(Box<Prepared>),
 }
 
@@ -371,16 +383,21 @@ impl StreamTracker {
         }
     }
 
-    /// Reads what the next step needs from a side-by-side RGB8 or YUYV frame.
-    pub fn prepare(&mut self, frame: &SbsBytes) -> Result<(), FrameError> {
-        self.ready = None;
+    /// Whether `frame` can be read: whole, and of a size the calibration has a rig for.
+    pub fn check(&self, frame: &SbsBytes) -> Result<StereoRig, FrameError> {
         if !frame.is_complete() {
             return Err(FrameError::incomplete(frame));
         }
-        let rig = self
+        Ok(self
             .config
             .calibration
-            .rig_for_image(frame.width as u32, frame.height as u32)?;
+            .rig_for_image(frame.width as u32, frame.height as u32)?)
+    }
+
+    /// Reads what the next step needs from a side-by-side RGB8 or YUYV frame.
+    pub fn prepare(&mut self, frame: &SbsBytes) -> Result<(), FrameError> {
+        self.ready = None;
+        let rig = self.check(frame)?;
         let ready = match self.tracker.prediction() {
             Some(genes) => {
                 let regions = match &mut self.regions {
@@ -418,7 +435,9 @@ impl StreamTracker {
             }
             Ready::Acquire(prepared) => {
                 let acquiring = self.tracker.needs_acquisition();
-                let mut estimate = self.tracker.step(&prepared.problem(&self.config));
+                let (scorer, points, bounds) = (&self.scorer, &self.points[0], &self.bounds);
+                let tracking_f = |g: &Genes| scorer.evaluate(points, &prepared.levels[0], &bounds.decode(g)).f;
+                let mut estimate = self.tracker.step_whole(&prepared.problem(&self.config), &tracking_f);
                 // The one-shot verdict: a pose it does not call found is not tracked. A
                 // rejected acquisition is searched afresh; a doubtful relocation goes on
                 // being tracked, searching more widely, until its fitness says found or
@@ -441,14 +460,10 @@ impl StreamTracker {
         self.ready = None;
     }
 
-    /// Whether the next frame will go to a (one-shot) acquisition.
+    /// Whether the next frame will go to a (one-shot) acquisition or a relocation: a
+    /// search of the whole frame.
     pub fn will_acquire(&self) -> bool {
         self.tracker.prediction().is_none()
-    }
-
-    /// Whether the prepared frame is for a (one-shot) acquisition, not for tracking.
-    pub fn acquiring(&self) -> bool {
-        matches!(self.ready, Some(Ready::Acquire(_)))
     }
 
     /// The photo-model being tracked.

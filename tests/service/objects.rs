@@ -50,11 +50,11 @@ fn two_objects_are_tracked_together_each_against_its_own_truth() {
         let [a, b] = [0, 1].map(|k| set.objects()[k].pose);
         assert_eq!((a.frame_id, a.capture_time_ns), (b.frame_id, b.capture_time_ns));
     }
-    // Share of each object's poses after its acquisition that are `tracking`: the target
-    // is 95 %; the hopper card, acquired in the background while the rocket is tracked,
-    // still loses its track at times (about 80 % measured), so its floor guards against
-    // regression only.
-    for (name, floor) in [("rocket", 0.95), ("hopper", 0.6)] {
+    // Share of each object's poses after its acquisition that are `tracking`. The hopper
+    // card is acquired and relocated in the background while the rocket is tracked; a
+    // relocation the verdict doubts can leave it `searching` for a while (96–100 %
+    // measured), so its floor is lower.
+    for (name, floor) in [("rocket", 0.95), ("hopper", 0.85)] {
         let poses: Vec<PoseMsg> = w.sets.iter().filter_map(|s| s.get(name).copied()).collect();
         // After the object's own acquisition (its first tracking pose).
         let start = poses
