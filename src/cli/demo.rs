@@ -460,17 +460,23 @@ impl Record {
             .filter_map(|(p, at)| Some((p, self.truth.get(&p.frame_id)?, *at)))
     }
 
-    /// Frames the estimator skipped while tracking: between its second and last pose
-    /// (the first, the acquisition, takes many frame periods), and the frames it tracked.
+    /// Frames the estimator skipped while tracking, and the frames from each tracking
+    /// pose to the next. The frames after a search of the whole frame (an acquisition or
+    /// the relocation after it: more generations than the median pose) are left out, as
+    /// `photopose latency` does: it takes many frame periods.
     fn dropped(&self) -> (u64, u64) {
-        match (self.poses.get(1), self.poses.last()) {
-            (Some((a, _)), Some((b, _))) => {
-                let span = b.frame_id.saturating_sub(a.frame_id) + 1;
-                let posed = self.poses.len() as u64 - 1;
-                (span.saturating_sub(posed), span)
+        let median = Samples::new(self.poses.iter().map(|(p, _)| p.generations as f64)).median();
+        let (mut dropped, mut span) = (0, 0);
+        for w in self.poses.windows(2) {
+            let (a, b) = (&w[0].0, &w[1].0);
+            if a.generations as f64 > median {
+                continue;
             }
-            _ => (0, 0),
+            let gap = b.frame_id.saturating_sub(a.frame_id + 1);
+            dropped += gap;
+            span += gap + 1;
         }
+        (dropped, span)
     }
 
     /// Frames that went by during the acquisition.
