@@ -145,6 +145,9 @@ pub struct FrameInfo {
     /// The true pose and size of each object of [`FrameSource::objects`] in this frame,
     /// where the source knows it (the first is the one a recording keeps).
     pub truth: [Option<Truth>; MAX_OBJECTS],
+    /// The source's own number for the frame, published instead of the capture's count:
+    /// a replay's recorded `frame_id`.
+    pub frame_id: Option<u64>,
 }
 
 impl FrameInfo {
@@ -155,6 +158,7 @@ impl FrameInfo {
         Self {
             capture_time_ns,
             truth: all,
+            frame_id: None,
         }
     }
 

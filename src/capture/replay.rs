@@ -29,6 +29,10 @@ pub struct ReplaySource {
     geometry: Geometry,
     times: Vec<u64>,
     truth: Vec<Option<Truth>>,
+    /// The recorded `frame_id`s, and what each pass of a looping replay adds to them
+    /// (one more than the largest), so the ids keep increasing.
+    ids: Vec<u64>,
+    id_period: u64,
     fps: Option<f64>,
     looping: bool,
     start: Instant,
@@ -51,6 +55,8 @@ impl ReplaySource {
         let (tx, decoded) = bounded(AHEAD);
         let times = seq.times();
         let truth = seq.frames.iter().map(|f| f.truth).collect();
+        let ids: Vec<u64> = seq.frames.iter().map(|f| f.frame_id).collect();
+        let id_period = ids.iter().max().map_or(1, |m| m.saturating_add(1));
         let reader = seq.clone();
         std::thread::Builder::new()
             .name("photopose-replay".into())
@@ -61,6 +67,8 @@ impl ReplaySource {
             geometry,
             times,
             truth,
+            ids,
+            id_period,
             fps,
             looping,
             start: Instant::now(),
@@ -165,8 +173,48 @@ impl FrameSource for ReplaySource {
         let frame = buf.copy_from(&bytes)?;
         // The reader may be gone after the last frame; the buffer is then not needed.
         let _ = self.recycle.send(bytes);
+        let pass = self.played / self.ids.len().max(1) as u64;
         self.played += 1;
-        let info = FrameInfo::single(monotonic_ns(), self.truth[index]);
+        let mut info = FrameInfo::single(monotonic_ns(), self.truth[index]);
+        info.frame_id = Some(self.ids[index].saturating_add(pass.saturating_mul(self.id_period)));
         Ok(Some((info, frame)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::capture::sequence::{CSV_HEADER, FRAMES_FILE, INFO_FILE};
+
+    /// A two-frame YUYV recording (2×1 pixels per eye) whose frames are numbered 5 and 9.
+    fn recording(dir: &Path) {
+        std::fs::create_dir_all(dir).expect("scratch directory");
+        let info = "format = \"photopose-sequence\"\nversion = 1\nwidth = 2\nheight = 1\n\
+                    pixel_format = \"YUYV\"\nsource = \"test\"\n";
+        std::fs::write(dir.join(INFO_FILE), info).expect("sequence.toml");
+        let mut csv = format!("{}\n", CSV_HEADER);
+        for (id, time) in [(5, 1_000), (9, 2_000)] {
+            csv += &format!("{id},{time},{id}.yuyv,,,,,,,,,\n");
+            std::fs::write(dir.join(format!("{id}.yuyv")), [id as u8; 8]).expect("frame");
+        }
+        std::fs::write(dir.join(FRAMES_FILE), csv).expect("frames.csv");
+    }
+
+    #[test]
+    fn replay_keeps_the_recorded_frame_ids_and_a_loop_keeps_them_increasing() {
+        let dir = std::env::temp_dir().join(format!("photopose-replay-ids-{}", std::process::id()));
+        recording(&dir);
+        let mut replay = ReplaySource::open(&dir, Some(1000.0), true).expect("replay");
+        let mut buf = vec![0u8; replay.geometry().frame_len()];
+        let played: Vec<(Option<u64>, u8)> = (0..5)
+            .map(|_| {
+                let info = replay.fill(&mut buf).expect("frame").expect("a frame");
+                (info.frame_id, buf[0])
+            })
+            .collect();
+        // Each pass adds one more than the largest recorded id (10).
+        let expected = [(5, 5), (9, 9), (15, 5), (19, 9), (25, 5)].map(|(id, byte)| (Some(id), byte));
+        assert_eq!(played, expected);
+        std::fs::remove_dir_all(&dir).expect("clean up");
     }
 }

@@ -231,6 +231,7 @@ impl FrameSource for SyntheticSource {
         let info = FrameInfo {
             capture_time_ns: monotonic_ns(),
             truth,
+            frame_id: None,
         };
         Ok(Some((info, frame)))
     }

@@ -181,9 +181,10 @@ fn publish_all(args: &CaptureArgs, ipc: &Ipc, source: &mut dyn FrameSource, out:
 }
 
 /// Loans a sample, has the source write the frame straight into it (the sample is not
-/// zeroed first), records it, and sends it and its truth as frame `frame_id`. False
-/// when the source had no frame this time.
-fn publish_one(source: &mut dyn FrameSource, out: &mut Outlets, frame_id: u64) -> Result<bool> {
+/// zeroed first), records it, and sends it and its truth as frame `count` (or the
+/// number the source gave it: a replay's recorded one). False when the source had no
+/// frame this time.
+fn publish_one(source: &mut dyn FrameSource, out: &mut Outlets, count: u64) -> Result<bool> {
     let geometry = source.geometry();
     let mut sample = out
         .frames
@@ -195,6 +196,7 @@ fn publish_one(source: &mut dyn FrameSource, out: &mut Outlets, frame_id: u64) -
     // SAFETY: `write_uninit` returns a frame only when every byte of the payload it was
     // given, the whole sample, has been written.
     let mut sample = unsafe { sample.assume_init() };
+    let frame_id = info.frame_id.unwrap_or(count);
     *sample.user_header_mut() = FrameHeader {
         frame_id,
         capture_time_ns: info.capture_time_ns,

@@ -142,6 +142,16 @@ fn replay_plays_a_recording_with_its_truth() {
     let csv = std::fs::read_to_string(rec.join("frames.csv")).expect("frames.csv");
     let recorded = csv.lines().count() - 1;
     assert!(recorded >= 30, "{recorded} frames recorded");
+    // Renumbered from 1000: the replay publishes the recorded ids.
+    let renumbered: Vec<String> = csv
+        .lines()
+        .enumerate()
+        .map(|(i, line)| match (i, line.split_once(',')) {
+            (1.., Some((id, rest))) => format!("{},{rest}", 1000 + id.parse::<u64>().expect("frame id")),
+            _ => line.to_string(),
+        })
+        .collect();
+    std::fs::write(rec.join("frames.csv"), renumbered.join("\n") + "\n").unwrap();
 
     let mut w = Watcher::new("photopose-test-replay");
     let _estimator = estimator();
@@ -153,6 +163,13 @@ fn replay_plays_a_recording_with_its_truth() {
         w.truths.len(),
         recorded,
         "every recorded frame is replayed with its truth"
+    );
+    let mut ids: Vec<u64> = w.truths.keys().copied().collect();
+    ids.sort_unstable();
+    assert_eq!(
+        ids,
+        (1000..1000 + recorded as u64).collect::<Vec<_>>(),
+        "the recorded frame ids"
     );
     let tracked: Vec<f64> = w.got[1..]
         .iter()
