@@ -173,6 +173,45 @@ fn a_pose_below_the_fitness_floor_is_lost_never_tracking() {
     );
 }
 
+/// The card leaves the view for a second and comes back 150 mm further on: never
+/// `tracking` while it is away; once lost, the tracker relocates the last tracked pose on
+/// each frame (and acquires afresh after `RECOVERIES` of them), so the card is
+/// `tracking` again within 2 frames of coming back, and right.
+#[test]
+fn a_card_that_leaves_and_comes_back_is_recovered_at_once() {
+    let (spec, r, rig, mut scene) = rocket_scene();
+    let (away, back, end) = (20, 80, 100);
+    let mut tracker = StreamTracker::new(r.model.clone(), r.config.clone());
+    let mut log = Vec::new();
+    let mut recovered = None;
+    for i in 0..end {
+        scene.card.hand_from_model = if (away..back).contains(&i) {
+            Isometry3::translation(5000.0, 0.0, 650.0)
+        } else {
+            moving_card(&spec, &r, i)
+        };
+        let (est, _) = step(&mut tracker, &rig, &r, &scene);
+        let error = (est.best.position - scene.card.hand_from_model.translation.vector).norm();
+        log.push(format!("{i}: {:?} {error:.0} mm", est.state));
+        let tracking = est.state == TrackState::Tracking;
+        assert!(
+            !(tracking && (away..back).contains(&i)),
+            "frame {i}: tracking while out of view"
+        );
+        assert!(!tracking || error <= 20.0, "frame {i}: tracking {error:.1} mm off");
+        if tracking && i >= back && recovered.is_none() {
+            recovered = Some(i - back);
+        }
+    }
+    println!("{}", log.join(", "));
+    let recovered = recovered.expect("the card was tracked again");
+    println!("tracking again {recovered} frames after the card came back");
+    assert!(
+        recovered <= 2,
+        "tracking again only {recovered} frames after the card came back"
+    );
+}
+
 /// The estimator's timeline on the synthetic camera at 150 mm/s: the acquisition on frame
 /// 0 takes half a second to two seconds (a busy machine), so tracking resumes 24 to 120
 /// frames later, up to 300 mm from the acquired pose. Whatever the gap, the acquired

@@ -64,6 +64,24 @@ pub const RELOCATE_GENERATIONS: usize = 12;
 /// and 30 mm off in depth it still scores 0.88 of the truth.
 const DOUBT_SHARE: f64 = 0.95;
 
+/// Relocations of the last tracked pose tried after the object was lost, before the next
+/// acquisition (each reads and searches the whole frame: about 0.1 s at HD). An object
+/// that comes back into view as it left is found again by the first of them.
+pub const RECOVERIES: usize = 8;
+
+/// What the tracker does with the next frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Plan {
+    /// The one-shot robust search over the whole frame.
+    Acquire,
+    /// Relocate the model just acquired on an older frame.
+    Relocate,
+    /// The object is lost: relocate its last tracked pose.
+    Recover,
+    /// Track the population around the predicted pose.
+    Track,
+}
+
 /// A GA population that lives from frame to frame.
 pub struct Tracker {
     settings: TrackingSettings,
@@ -89,6 +107,10 @@ pub struct Tracker {
     /// The last relocation was not judged found: tracking needs [`DOUBT_SHARE`] of the
     /// acquisition's `F` until a frame is tracked.
     doubted: bool,
+    /// The best genes of the last `tracking` frame.
+    anchor: Option<Genes>,
+    /// Recoveries left before the next acquisition.
+    recoveries: usize,
 }
 
 impl Tracker {
@@ -110,6 +132,8 @@ impl Tracker {
             rejected: false,
             relocating: false,
             doubted: false,
+            anchor: None,
+            recoveries: 0,
         }
     }
 
@@ -117,6 +141,20 @@ impl Tracker {
     /// afresh, and nothing is tracked from this pose.
     pub fn reject_acquisition(&mut self) {
         self.rejected = true;
+        self.relocating = false;
+        self.recoveries = RECOVERIES;
+    }
+
+    /// The last frame's `tracking` pose is confirmed (a tracking frame, or a whole-frame
+    /// search the verdict calls found): the object is recovered from there when lost.
+    pub fn confirm(&mut self) {
+        self.anchor = self.last_best;
+        self.recoveries = RECOVERIES;
+    }
+
+    /// The verdict on the last recovery was "not found": the object is still lost.
+    pub fn recovery_failed(&mut self) {
+        self.searching = self.searching.max(self.settings.lost_after_frames + 1);
     }
 
     /// The last frame's pose was not judged found although its fitness may be high: the
@@ -126,15 +164,30 @@ impl Tracker {
         self.doubted = true;
     }
 
-    /// True until the first acquisition, and after the object was lost.
+    /// What the next frame is for: an acquisition until the first one is found and after
+    /// the recoveries of a lost object failed; a relocation after an acquisition.
+    pub fn plan(&self) -> Plan {
+        let lost = self.rejected || self.searching > self.settings.lost_after_frames;
+        if self.pop.is_empty() || (lost && (self.recoveries == 0 || self.anchor.is_none())) {
+            Plan::Acquire
+        } else if lost {
+            Plan::Recover
+        } else if self.relocating {
+            Plan::Relocate
+        } else {
+            Plan::Track
+        }
+    }
+
+    /// True until the first acquisition, and after a lost object's recoveries failed.
     pub fn needs_acquisition(&self) -> bool {
-        self.rejected || self.pop.is_empty() || self.searching > self.settings.lost_after_frames
+        self.plan() == Plan::Acquire
     }
 
     /// The genes expected on the next frame (last best moved by the estimated velocity);
-    /// `None` while the object has to be acquired or relocated (on the whole frame).
+    /// `None` while the whole frame is to be searched (see [`Tracker::plan`]).
     pub fn prediction(&self) -> Option<Genes> {
-        if self.needs_acquisition() || self.relocating {
+        if self.plan() != Plan::Track {
             return None;
         }
         self.last_best
@@ -156,17 +209,25 @@ impl Tracker {
 
     fn step_judged(&mut self, problem: &Problem, tracking_f: Option<&dyn Fn(&Genes) -> f64>) -> Estimate {
         self.frames += 1;
-        let acquiring = self.needs_acquisition();
-        let relocating = !acquiring && self.relocating;
-        let generations = if acquiring {
-            self.acquire(problem);
-            self.settings.acquire_generations
-        } else if relocating {
-            self.relocate(problem);
-            RELOCATE_GENERATIONS
-        } else {
-            self.track(problem);
-            self.settings.generations_per_frame
+        let plan = self.plan();
+        let generations = match plan {
+            Plan::Acquire => {
+                self.acquire(problem);
+                self.settings.acquire_generations
+            }
+            Plan::Relocate | Plan::Recover => {
+                let from = match plan {
+                    Plan::Recover => self.anchor,
+                    _ => self.pop.best().map(|b| b.0),
+                };
+                self.recoveries -= usize::from(plan == Plan::Recover);
+                self.relocate(problem, from);
+                RELOCATE_GENERATIONS
+            }
+            Plan::Track => {
+                self.track(problem);
+                self.settings.generations_per_frame
+            }
         };
         let (best, fitness) = self
             .pop
@@ -179,7 +240,10 @@ impl Tracker {
         self.last_best = Some(best);
         // A relocation is judged against the acquisition's fitness, which the verdict
         // confirmed: the same object, as well matched.
-        let state = self.judge(tracking_f.map_or(fitness.f, |f| f(&best)), acquiring);
+        let state = self.judge(tracking_f.map_or(fitness.f, |f| f(&best)), plan == Plan::Acquire);
+        if state == TrackState::Tracking && plan == Plan::Track {
+            self.confirm();
+        }
         Estimate {
             best: problem.bounds.decode(&best),
             fitness,
@@ -234,14 +298,15 @@ impl Tracker {
         self.velocity = [0.0; GENES];
     }
 
-    /// Finds the acquired model again on a newer frame (translated, see
-    /// [`relocate`](relocate::relocate)), then lets the population settle around it.
-    fn relocate(&mut self, problem: &Problem) {
+    /// Finds the model at `from` (just acquired, or last tracked) again on this frame
+    /// (translated, see [`relocate`](relocate::relocate)), then lets the population
+    /// settle around it.
+    fn relocate(&mut self, problem: &Problem, from: Option<Genes>) {
         self.relocating = false;
-        let Some((best, _)) = self.pop.best() else {
+        let Some(from) = from else {
             return;
         };
-        let (moved, _) = relocate::relocate(problem, &problem.bounds.decode(&best), self.box_px);
+        let (moved, _) = relocate::relocate(problem, &problem.bounds.decode(&from), self.box_px);
         let (n, sigma) = (self.settings.population, self.settings.sigma);
         self.pop.seed_around(problem, moved, n, sigma, &mut self.rng);
         self.evolve(problem, RELOCATE_GENERATIONS, false);
@@ -434,21 +499,28 @@ impl StreamTracker {
                 self.tracker.step(&problem)
             }
             Ready::Acquire(prepared) => {
-                let acquiring = self.tracker.needs_acquisition();
+                let plan = self.tracker.plan();
                 let (scorer, points, bounds) = (&self.scorer, &self.points[0], &self.bounds);
                 let tracking_f = |g: &Genes| scorer.evaluate(points, &prepared.levels[0], &bounds.decode(g)).f;
                 let mut estimate = self.tracker.step_whole(&prepared.problem(&self.config), &tracking_f);
                 // The one-shot verdict: a pose it does not call found is not tracked. A
-                // rejected acquisition is searched afresh; a doubtful relocation goes on
-                // being tracked, searching more widely, until its fitness says found or
-                // it is lost.
-                if !prepared.verdict(&estimate.best).found {
-                    estimate.state = TrackState::Searching;
-                    if acquiring {
-                        self.tracker.reject_acquisition();
-                    } else {
-                        self.tracker.doubt();
-                    }
+                // rejected acquisition is searched afresh (after recoveries, once an
+                // object was tracked); a doubtful relocation goes on being tracked,
+                // searching more widely, until its fitness says found or it is lost; a
+                // failed recovery leaves the object lost.
+                let found = prepared.verdict(&estimate.best).found;
+                match (found, plan) {
+                    (true, _) if estimate.state == TrackState::Tracking => self.tracker.confirm(),
+                    (true, _) => {}
+                    (false, Plan::Acquire) => self.tracker.reject_acquisition(),
+                    (false, Plan::Recover) => self.tracker.recovery_failed(),
+                    (false, _) => self.tracker.doubt(),
+                }
+                if !found {
+                    estimate.state = match plan {
+                        Plan::Recover => TrackState::Lost,
+                        _ => TrackState::Searching,
+                    };
                 }
                 estimate
             }
@@ -524,6 +596,31 @@ mod tests {
         }
         assert_eq!(tracker.judge(1.5, false), L);
         assert!(tracker.needs_acquisition());
+    }
+
+    #[test]
+    fn a_lost_object_is_recovered_from_its_last_tracked_pose_before_it_is_acquired() {
+        let settings = TrackingSettings::default();
+        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        assert_eq!(tracker.plan(), Plan::Acquire, "nothing acquired yet");
+        tracker.pop = LivePopulation::of(vec![[0.5; GENES]]);
+        tracker.last_best = Some([0.5; GENES]);
+        assert_eq!(tracker.plan(), Plan::Track);
+        tracker.confirm();
+        for _ in 0..=settings.lost_after_frames {
+            tracker.judge(0.9, false);
+        }
+        // Lost: the recoveries, one per frame (each counted by `step`), then an acquisition.
+        for _ in 0..RECOVERIES {
+            assert_eq!(tracker.plan(), Plan::Recover);
+            assert!(tracker.prediction().is_none(), "a recovery searches the whole frame");
+            tracker.recoveries -= 1;
+            tracker.recovery_failed();
+        }
+        assert_eq!(tracker.plan(), Plan::Acquire);
+        // An acquisition the verdict rejects is followed by recoveries again.
+        tracker.reject_acquisition();
+        assert_eq!(tracker.plan(), Plan::Recover);
     }
 
     #[test]
