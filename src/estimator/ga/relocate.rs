@@ -7,6 +7,9 @@
 //! blurred fitness peak is wider than that), at a few depths around the acquired one and
 //! a few turns about the line of sight, and the best placements are climbed level by
 //! level up to full resolution.
+//!
+//! The same search recovers a lost object from its last tracked pose (see
+//! [`Plan::Recover`](crate::estimator::tracking::Plan::Recover)).
 
 use nalgebra::{Isometry3, Point3};
 
