@@ -4,7 +4,7 @@
 //! the fitness stays low the search widens (immigrants), and after a while the object
 //! is acquired afresh with the one-shot robust search. An acquisition's frame is about a
 //! second old when its search ends, so the next frame first relocates the acquired model
-//! ([`relocate`](crate::estimator::ga::relocate)) before tracking resumes.
+//! ([`relocate`]) before tracking resumes.
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
