@@ -100,8 +100,6 @@ pub struct Tracker {
     last_best: Option<Genes>,
     velocity: Genes,
     frames: u64,
-    /// The last acquisition's pose was judged not found: acquire afresh.
-    rejected: bool,
     /// The population was acquired on an older frame: relocate it on the next one.
     relocating: bool,
     /// The last relocation was not judged found: tracking needs [`DOUBT_SHARE`] of the
@@ -129,7 +127,6 @@ impl Tracker {
             last_best: None,
             velocity: [0.0; GENES],
             frames: 0,
-            rejected: false,
             relocating: false,
             doubted: false,
             anchor: None,
@@ -140,7 +137,7 @@ impl Tracker {
     /// The verdict on the last acquisition was "not found": the next frame is acquired
     /// afresh, and nothing is tracked from this pose.
     pub fn reject_acquisition(&mut self) {
-        self.rejected = true;
+        self.recovery_failed();
         self.relocating = false;
         self.recoveries = RECOVERIES;
     }
@@ -167,7 +164,7 @@ impl Tracker {
     /// What the next frame is for: an acquisition until the first one is found and after
     /// the recoveries of a lost object failed; a relocation after an acquisition.
     pub fn plan(&self) -> Plan {
-        let lost = self.rejected || self.searching > self.settings.lost_after_frames;
+        let lost = self.searching > self.settings.lost_after_frames;
         if self.pop.is_empty() || (lost && (self.recoveries == 0 || self.anchor.is_none())) {
             Plan::Acquire
         } else if lost {
@@ -215,13 +212,13 @@ impl Tracker {
                 self.acquire(problem);
                 self.settings.acquire_generations
             }
-            Plan::Relocate | Plan::Recover => {
-                let from = match plan {
-                    Plan::Recover => self.anchor,
-                    _ => self.pop.best().map(|b| b.0),
-                };
-                self.recoveries -= usize::from(plan == Plan::Recover);
-                self.relocate(problem, from);
+            Plan::Relocate => {
+                self.relocate(problem, self.pop.best().map(|b| b.0));
+                RELOCATE_GENERATIONS
+            }
+            Plan::Recover => {
+                self.recoveries -= 1;
+                self.relocate(problem, self.anchor);
                 RELOCATE_GENERATIONS
             }
             Plan::Track => {
@@ -290,7 +287,6 @@ impl Tracker {
         let best = problem.bounds.encode(&outcome.best);
         let (n, sigma) = (self.settings.population, self.settings.sigma);
         self.pop.seed_around(problem, best, n, sigma, &mut self.rng);
-        self.rejected = false;
         self.relocating = true;
         self.doubted = false;
         self.searching = 0;
@@ -621,6 +617,10 @@ mod tests {
         // An acquisition the verdict rejects is followed by recoveries again.
         tracker.reject_acquisition();
         assert_eq!(tracker.plan(), Plan::Recover);
+        // A recovery that is tracked ends the loss.
+        assert_eq!(tracker.judge(1.9, false), T);
+        tracker.confirm();
+        assert_eq!(tracker.plan(), Plan::Track);
     }
 
     #[test]

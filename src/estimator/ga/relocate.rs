@@ -30,10 +30,11 @@ const PER_GROUP: usize = 2;
 const CLIMB: usize = 200;
 
 /// The placement of `from` translated so its origin lies on the left camera's ray
-/// through full-resolution pixel `(u, v)` at depth `z` (orientation and size unchanged).
-fn placed(problem: &Problem, left_from_hand: &Isometry3<f64>, from: &PoseSize, u: f64, v: f64, z: f64) -> Genes {
+/// through full-resolution pixel `(u, v)` at depth `z` (orientation and size unchanged;
+/// `hand_from_left` the inverse hand–eye transform).
+fn placed(problem: &Problem, hand_from_left: &Isometry3<f64>, from: &PoseSize, u: f64, v: f64, z: f64) -> Genes {
     let ray = problem.levels[0].rig.left.ray(u, v);
-    let origin = left_from_hand.inverse() * Point3::from(ray * z);
+    let origin = hand_from_left * Point3::from(ray * z);
     problem.bounds.encode(&PoseSize {
         position: origin.coords,
         ..*from
@@ -51,10 +52,11 @@ fn placements(problem: &Problem, from: &PoseSize, box_px: [f64; 2]) -> Vec<Vec<G
     let apparent_px = rig.left.fx * l.min(b) / z0;
     let step = (apparent_px / STEPS_PER_SIZE).max(1.0 / coarse.scale);
     let (cols, rows) = ((rig.width as f64 / step) as usize, (rig.height as f64 / step) as usize);
+    let hand_from_left = left_from_hand.inverse();
     let grid = |turned: &PoseSize, z: f64| -> Vec<Genes> {
         (0..rows)
             .flat_map(|r| (0..cols).map(move |c| ((c as f64 + 0.5) * step, (r as f64 + 0.5) * step)))
-            .map(|(u, v)| placed(problem, &left_from_hand, turned, u, v, z))
+            .map(|(u, v)| placed(problem, &hand_from_left, turned, u, v, z))
             .collect()
     };
     ROLLS_DEG
