@@ -15,7 +15,7 @@
 
 mod edit;
 mod report;
-mod table;
+pub mod table;
 
 use image::RgbImage;
 use nalgebra::{Point3, Vector3};
@@ -239,12 +239,22 @@ fn card_texture(case: &Case) -> RgbImage {
     }
 }
 
+/// `file` in `tests/data/backgrounds/` as the wall, [`WALL_WIDTH_MM`] wide at [`WALL_MM`].
+pub fn wall_photo(file: &str) -> Background {
+    let texture = load_wall(file);
+    Background::from_texture(&texture, WALL_MM, WALL_WIDTH_MM / texture.width() as f64)
+}
+
+fn load_wall(file: &str) -> RgbImage {
+    image::open(data(format!("backgrounds/{file}")))
+        .expect("wall photo")
+        .to_rgb8()
+}
+
 /// The wall: the case's photo, [`WALL_WIDTH_MM`] wide at [`WALL_MM`], with its patches
 /// painted in `hue` and `sat`.
 fn wall(case: &Case, hue: f64, sat: f64) -> Background {
-    let mut texture = image::open(data(format!("backgrounds/{}", case.wall)))
-        .expect("wall photo")
-        .to_rgb8();
+    let mut texture = load_wall(case.wall);
     let texel_mm = WALL_WIDTH_MM / texture.width() as f64;
     let (w, h) = (texture.width() as f64, texture.height() as f64);
     let [x, y, z] = case.spec.position;

@@ -11,6 +11,7 @@ mod detect;
 mod generalisation;
 mod robustness;
 mod scenes;
+mod sequences;
 mod suite;
 mod tracking;
 mod zed;

@@ -54,6 +54,11 @@ pub enum TrackState {
 const EDGE_MOVES: f64 = 0.25;
 const EDGE_STEP: f64 = 0.03;
 
+/// Share of the difference between a frame's displacement and the predicted one that
+/// the position's velocity estimate takes on (and the share of the last change that the
+/// other genes are predicted to repeat).
+const VELOCITY_GAIN: f64 = 0.5;
+
 /// Generations of the tracking GA after a relocation, on the whole frame at full
 /// resolution: the orientation and size that changed during the acquisition settle.
 pub const RELOCATE_GENERATIONS: usize = 12;
@@ -231,8 +236,21 @@ impl Tracker {
             .best()
             .expect("an acquired population holds at least its best individual");
         if let Some(last) = self.last_best {
-            // Damped: a wrong prediction costs more than a missing one.
-            self.velocity = std::array::from_fn(|i| 0.5 * (best[i] - last[i]));
+            self.velocity = std::array::from_fn(|i| {
+                let moved = best[i] - last[i];
+                if i < 3 {
+                    // Position: an alpha-beta filter. The velocity moves halfway toward
+                    // this frame's displacement, so a steady motion is predicted in
+                    // full (600 mm/s is 20 mm a frame at 30 fps), one frame's jitter in
+                    // half.
+                    self.velocity[i] + VELOCITY_GAIN * (moved - self.velocity[i])
+                } else {
+                    // Orientation and size: half the last change only. What the frame
+                    // observes weakly (the tilt of a small card) wanders from frame to
+                    // frame; a filter would keep it drifting.
+                    VELOCITY_GAIN * moved
+                }
+            });
         }
         self.last_best = Some(best);
         // A relocation is judged against the acquisition's fitness, which the verdict

@@ -24,11 +24,12 @@ const MEDIANS: Errors = Errors {
 };
 
 /// Floors of the success shares, asserted against regressions: the shares measured on
-/// 2026-12-01 after the polish ran side by side (clean 26 of 32, hard 13 of 22) less
-/// two scenes. The same search with other random streams has measured 26–28 clean and
-/// 12–14 hard. The targets above are reported, not asserted, until they are reached.
-const CLEAN_FLOOR: f64 = 0.75;
-const HARD_FLOOR: f64 = 0.5;
+/// 2026-12-01 after the stereo term left out the points at the model's edge (clean 29
+/// of 32, hard 15 of 22) less two scenes. The search with other random streams has
+/// moved by one or two scenes either way. The targets above are reported, not
+/// asserted, until they are reached.
+const CLEAN_FLOOR: f64 = 0.84;
+const HARD_FLOOR: f64 = 0.59;
 /// A pose this far off must never be reported found: position mm, rotation degrees.
 const WRONG_MM: f64 = 20.0;
 const WRONG_DEG: f64 = 10.0;

@@ -5,12 +5,12 @@
 use super::{scene, Blur, Card, Case, Patch, Texture};
 
 /// The card photos and their boxes `[x, y, w, h]`, as given to `photopose model --box`.
-const CUP: Card = Card::new("coffee.jpg", [149, 22, 279, 289]);
-const CAT: Card = Card::new("chelsea.jpg", [70, 20, 280, 270]);
-const ASTRO: Card = Card::new("astronaut.jpg", [120, 20, 270, 330]);
-const ROCKET: Card = Card::new("rocket.jpg", [150, 60, 340, 300]);
-const BOWL: Card = Card::new("bowl.jpg", [230, 110, 520, 380]);
-const HOPPER: Card = Card::new("hopper.jpg", [100, 20, 340, 480]);
+pub const CUP: Card = Card::new("coffee.jpg", [149, 22, 279, 289]);
+pub const CAT: Card = Card::new("chelsea.jpg", [70, 20, 280, 270]);
+pub const ASTRO: Card = Card::new("astronaut.jpg", [120, 20, 270, 330]);
+pub const ROCKET: Card = Card::new("rocket.jpg", [150, 60, 340, 300]);
+pub const BOWL: Card = Card::new("bowl.jpg", [230, 110, 520, 380]);
+pub const HOPPER: Card = Card::new("hopper.jpg", [100, 20, 340, 480]);
 
 /// The walls (`tests/data/backgrounds/`).
 const ROOM: &str = "room.jpg";
