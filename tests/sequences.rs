@@ -65,7 +65,7 @@ fn hides(occluder: &Occluder, p: &Point3<f64>) -> bool {
 
 /// Every take: the table, what happened in it, and the promises.
 #[test]
-#[ignore = "about 3 minutes: cargo test --test integration -- --ignored --nocapture tracking_sequences"]
+#[ignore = "about 10 minutes: cargo test --test integration -- --ignored --nocapture tracking_sequences"]
 fn tracking_sequences() {
     let mut rows = Vec::new();
     for take in takes::all() {

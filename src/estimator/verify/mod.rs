@@ -72,7 +72,7 @@ impl Verdict {
     /// sharpness from 0 (1 at 0.04). A pose is reported found from confidence 0.75 up,
     /// that is stereo ≥ 0.85, structure ≥ 0.90 and sharpness ≥ 0.03. On the accuracy
     /// suite every wrong pose (more than 20 mm or 10° off) that the other two inputs let
-    /// through had a sharpness of at most −0.006, and all but 2 of the 45 right ones at
+    /// through had a sharpness of at most −0.006, and all but 1 of the 44 right ones at
     /// least 0.03: a pose that a nearby pose beats is no peak, and a wrong one seldom is.
     pub fn of(texture: Texture, sharpness: f64) -> Self {
         let ramp = |v: f64, zero: f64, one: f64| (v - zero) / (one - zero);
