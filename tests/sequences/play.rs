@@ -73,7 +73,7 @@ pub struct Played {
 
 /// Renders the take frame by frame and runs the stream tracker on it.
 pub fn play(take: &Take) -> Played {
-    let stage = Stage::new(take);
+    let mut stage = Stage::new(take);
     let mut tracker = StreamTracker::new(stage.model.clone(), stage.config.clone());
     let n = (take.seconds * take.fps).round() as usize;
     let (mut frames, mut tracking_ms) = (Vec::with_capacity(n), Vec::new());
@@ -137,14 +137,14 @@ fn step(tracker: &mut StreamTracker, rig: &StereoRig, bytes: &[u8], yuyv: bool) 
     tracker.step().expect("a prepared frame")
 }
 
-/// What stays the same through a take: configuration, model, rig, card and wall.
+/// What stays the same through a take: configuration, model, rig, and the scene (card
+/// and wall) whose card each sub-frame moves.
 struct Stage {
     config: Config,
     model: photopose::estimator::model::PhotoModel,
     rig: StereoRig,
     size_mm: [f64; 2],
-    texture: RgbImage,
-    wall: render::Background,
+    scene: Scene,
 }
 
 impl Stage {
@@ -164,11 +164,22 @@ impl Stage {
         };
         let config = scenes::config(&spec);
         let rig = config.calibration.rig(Resolution::HD).expect("HD");
+        let scene = Scene {
+            card: Card {
+                texture: scenes::crop(&scenes::photo(spec.photo), spec.bbox),
+                hand_from_model: Isometry3::identity(),
+                size_mm: spec.size_mm,
+            },
+            background: suite::wall_photo(take.wall),
+            noise_sigma: 0.0,
+            brightness: 1.0,
+            occluder: None,
+            seed: 0,
+        };
         Self {
             model: scenes::model(&spec, &config),
-            texture: scenes::crop(&scenes::photo(spec.photo), spec.bbox),
-            wall: suite::wall_photo(take.wall),
             size_mm: spec.size_mm,
+            scene,
             config,
             rig,
         }
@@ -176,7 +187,7 @@ impl Stage {
 
     /// The side-by-side frame at time `t`: sub-frames across the exposure averaged, then
     /// the light's gains and noise.
-    fn frame(&self, take: &Take, t: f64, seed: u64) -> RgbImage {
+    fn frame(&mut self, take: &Take, t: f64, seed: u64) -> RgbImage {
         let subs = if take.exposure_s > 0.0 { SUBFRAMES } else { 1 };
         let mut sum: Vec<f64> = Vec::new();
         for k in 0..subs {
@@ -186,19 +197,10 @@ impl Stage {
                 0.0
             };
             let left_from_model = (take.motion)(t + dt);
-            let scene = Scene {
-                card: Card {
-                    texture: self.texture.clone(),
-                    hand_from_model: self.config.left_from_hand.inverse() * left_from_model,
-                    size_mm: self.size_mm,
-                },
-                background: self.wall.clone(),
-                noise_sigma: 0.0,
-                brightness: 1.0,
-                occluder: (take.occluder)(t + dt, &left_from_model, self.size_mm),
-                seed,
-            };
-            let img = render::render(&self.rig, &self.config.left_from_hand, &scene);
+            self.scene.card.hand_from_model = self.config.left_from_hand.inverse() * left_from_model;
+            self.scene.occluder = (take.occluder)(t + dt, &left_from_model, self.size_mm);
+            self.scene.seed = seed;
+            let img = render::render(&self.rig, &self.config.left_from_hand, &self.scene);
             sum.resize(img.as_raw().len(), 0.0);
             sum.iter_mut().zip(img.as_raw()).for_each(|(s, &v)| *s += v as f64);
         }
