@@ -6,7 +6,7 @@
 //! ([`ACQUISITION_S`], [`WHOLE_FRAME_S`]).
 //!
 //! `tracking_sequences` (ignored: `cargo test --test integration -- --ignored --nocapture
-//! tracking_sequences`) plays every take, prints the success table and writes it to
+//! tracking_sequences`; `TAKES=light,leave` for some) plays every take, prints the success table and writes it to
 //! `target/sequences/sequences.md`. Success, as the held-out sequences count it: the
 //! share of frames with at least 60 % of the card visible that got a `tracking` pose
 //! within 20 mm, 10° and 10 % of the truth. The targets are reported, reached
@@ -67,8 +67,11 @@ fn hides(occluder: &Occluder, p: &Point3<f64>) -> bool {
 #[test]
 #[ignore = "about 10 minutes: cargo test --test integration -- --ignored --nocapture tracking_sequences"]
 fn tracking_sequences() {
+    // `TAKES=light,occlude` plays only those takes.
+    let only = std::env::var("TAKES").ok();
+    let chosen = |t: &Take| only.as_deref().is_none_or(|o| o.split(',').any(|n| n == t.name));
     let mut rows = Vec::new();
-    for take in takes::all() {
+    for take in takes::all().into_iter().filter(chosen) {
         let played = play(&take);
         println!("{}", played.timeline());
         println!("{}", played.row());

@@ -9,11 +9,13 @@
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
+use image::RgbImage;
 use nalgebra::Isometry3;
 
 use crate::camera::calibration::CalibrationError;
 use crate::camera::StereoRig;
 use crate::config::Config;
+use crate::estimator::exposure::Exposure;
 use crate::estimator::fitness::{Fitness, PointSet, Scorer};
 use crate::estimator::ga::live::{Breeding, EdgeMoves, LivePopulation};
 use crate::estimator::ga::{relocate, Bounds, Genes, Problem, GENES};
@@ -179,6 +181,11 @@ impl Tracker {
         } else {
             Plan::Track
         }
+    }
+
+    /// Whether the last frame was `tracking`.
+    pub fn is_tracked(&self) -> bool {
+        self.searching == 0 && !self.pop.is_empty()
     }
 
     /// True until the first acquisition, and after a lost object's recoveries failed.
@@ -414,8 +421,10 @@ impl FrameError {
 enum Ready {
     /// Lookup regions around the prediction were refilled from the frame.
     Regions,
-    /// The whole frame, for a one-shot acquisition or the relocation after it.
-    Acquire(Box<Prepared>),
+    /// The whole frame, for a one-shot acquisition, the relocation after it or a
+    /// recovery, with its left image (an acquisition's light is the [`Exposure`]'s
+    /// reference).
+    Whole(Box<Prepared>, RgbImage),
 }
 
 /// The estimator's work on a stream of frames: each frame is first read
@@ -433,6 +442,8 @@ pub struct StreamTracker {
     extent_px: [f64; 2],
     regions: Option<LevelLookup>,
     tracker: Tracker,
+    /// The gains that bring each frame back to the light of the first tracked frame.
+    exposure: Exposure,
     ready: Option<Ready>,
 }
 
@@ -449,7 +460,9 @@ impl StreamTracker {
         )];
         let tracker = Tracker::new(&config, [model.l_p, model.b_p], config.ga.seed);
         let strip = 2.0 * model.outer_width_px;
+        let exposure = Exposure::new(&points[0]);
         Self {
+            exposure,
             extent_px: [model.l_p + strip, model.b_p + strip],
             config,
             model,
@@ -483,20 +496,38 @@ impl StreamTracker {
                     Some(r) if r.rig == rig => r,
                     slot => slot.insert(LevelLookup::regions(&rig)),
                 };
+                let predicted = self.bounds.decode(&genes);
+                let left_from_hand = &self.scorer.left_from_hand;
                 let rois = search_windows(
                     &rig,
-                    &self.scorer.left_from_hand,
-                    &self.bounds.decode(&genes),
+                    left_from_hand,
+                    &predicted,
                     self.extent_px,
                     WINDOW_GROW,
                     WINDOW_MIN_PX,
                 );
-                regions.refill(frame, &rois, &self.scorer.texel_rule());
+                // The light is read on the card while it is tracked, where the
+                // prediction shows it; otherwise the last gains hold.
+                let gains = if self.tracker.is_tracked() {
+                    self.exposure.update(frame, &rig, left_from_hand, &predicted)
+                } else {
+                    self.exposure.gains()
+                };
+                regions.refill(frame, &rois, &self.scorer.texel_rule().with_gains(gains));
                 Ready::Regions
             }
             None => {
-                let images = frame.to_images().ok_or_else(|| FrameError::incomplete(frame))?;
-                Ready::Acquire(Box::new(Prepared::new(&self.model, &images, &self.config)?))
+                // A fresh acquisition sees the frame as it is; a relocation or recovery
+                // in the light of the tracking frames.
+                if self.tracker.plan() == Plan::Acquire {
+                    self.exposure.reset();
+                }
+                let mut images = frame.to_images().ok_or_else(|| FrameError::incomplete(frame))?;
+                images.apply_gains(self.exposure.gains());
+                Ready::Whole(
+                    Box::new(Prepared::new(&self.model, &images, &self.config)?),
+                    images.left,
+                )
             }
         };
         self.ready = Some(ready);
@@ -512,7 +543,7 @@ impl StreamTracker {
                 let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
                 self.tracker.step(&problem)
             }
-            Ready::Acquire(prepared) => {
+            Ready::Whole(prepared, left) => {
                 let plan = self.tracker.plan();
                 let (scorer, points, bounds) = (&self.scorer, &self.points[0], &self.bounds);
                 let tracking_f = |g: &Genes| scorer.evaluate(points, &prepared.levels[0], &bounds.decode(g)).f;
@@ -529,6 +560,11 @@ impl StreamTracker {
                     (false, Plan::Acquire) => self.tracker.reject_acquisition(),
                     (false, Plan::Recover) => self.tracker.recovery_failed(),
                     (false, _) => self.tracker.doubt(),
+                }
+                if found && plan == Plan::Acquire {
+                    let rig = &prepared.levels[0].rig;
+                    self.exposure
+                        .set_reference(&left, rig, &self.scorer.left_from_hand, &estimate.best);
                 }
                 if !found {
                     estimate.state = match plan {

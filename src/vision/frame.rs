@@ -11,6 +11,7 @@ use nalgebra::{Isometry3, Point3};
 
 use crate::camera::{Intrinsics, StereoRig};
 use crate::vision::color::{rgb_to_hsv, ColorClasses};
+use crate::vision::lookup::gained;
 
 /// A problem reading a frame.
 #[derive(Debug, thiserror::Error)]
@@ -79,6 +80,18 @@ pub fn load_rgb(path: &Path) -> Result<RgbImage, FrameError> {
 }
 
 impl StereoImages {
+    /// Both eyes with every pixel scaled by `gains` `[r, g, b]`, clipped pixels kept (see
+    /// [`crate::vision::lookup::gained`]).
+    pub fn apply_gains(&mut self, gains: [f32; 3]) {
+        if gains == [1.0; 3] {
+            return;
+        }
+        for px in self.left.pixels_mut().chain(self.right.pixels_mut()) {
+            let rgb = gained(px.0.map(f32::from), gains);
+            px.0 = rgb.map(|c| c.round() as u8);
+        }
+    }
+
     /// Splits a side-by-side image (left eye in the left half).
     pub fn from_sbs(sbs: &RgbImage, path: &Path) -> Result<Self, FrameError> {
         let (w, h) = sbs.dimensions();

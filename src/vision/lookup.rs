@@ -52,12 +52,27 @@ pub enum SecondByte {
 }
 
 /// How a pixel's colour becomes a texel: the Table 1 classes and the second byte.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TexelRule {
     /// The Table 1 colour classes.
     pub classes: ColorClasses,
     /// What the second byte holds.
     pub second: SecondByte,
+    /// Gains `[r, g, b]` applied to a row's pixels before they are classed (tracking
+    /// under changing light: [`crate::estimator::exposure`]); `[1.0; 3]` leaves them as
+    /// they are. A clipped pixel (a channel at [`CLIPPED`] or more) keeps its value: its
+    /// true brightness is unknown.
+    pub gains: [f32; 3],
+}
+
+/// A channel value from which a pixel counts as clipped (over-exposed).
+pub const CLIPPED: f32 = 250.0;
+
+/// A pixel's channels scaled by `gains` (at most 255); a clipped pixel as it is.
+#[inline(always)]
+pub fn gained(rgb: [f32; 3], gains: [f32; 3]) -> [f32; 3] {
+    let keep = rgb[0].max(rgb[1]).max(rgb[2]) >= CLIPPED;
+    std::array::from_fn(|c| if keep { rgb[c] } else { (rgb[c] * gains[c]).min(255.0) })
 }
 
 impl TexelRule {
@@ -72,6 +87,19 @@ impl TexelRule {
                 SecondByte::RawHue => hue,
             },
         )
+    }
+
+    /// This rule with the pixels scaled by `gains` first.
+    pub fn with_gains(self, gains: [f32; 3]) -> Self {
+        Self { gains, ..self }
+    }
+
+    /// Applies [`TexelRule::gains`] to a chunk of channel values, in place.
+    #[inline(always)]
+    fn apply_gains<const N: usize>(&self, r: &mut [f32; N], g: &mut [f32; N], b: &mut [f32; N]) {
+        for i in 0..N {
+            [r[i], g[i], b[i]] = gained([r[i], g[i], b[i]], self.gains);
+        }
     }
 
     /// The texel of one pixel's [`PixelColor`].
@@ -102,6 +130,7 @@ impl TexelRule {
             for i in 0..N {
                 (r[i], g[i], b[i]) = (src[3 * i] as f32, src[3 * i + 1] as f32, src[3 * i + 2] as f32);
             }
+            self.apply_gains(&mut r, &mut g, &mut b);
             let mut texels = [0; N];
             for (i, t) in texels.iter_mut().enumerate() {
                 let (h, s, v) = hsv(r[i], g[i], b[i]);
@@ -148,6 +177,7 @@ impl TexelRule {
                 let channel = |c: i32| ((yy[i] + c) >> SHIFT).clamp(0, 255) as f32;
                 (r[i], g[i], b[i]) = (channel(ru[i]), channel(gu[i]), channel(bu[i]));
             }
+            self.apply_gains(&mut r, &mut g, &mut b);
             let mut texels = [0; N];
             for (i, t) in texels.iter_mut().enumerate() {
                 let (h, s, v) = hsv(r[i], g[i], b[i]);
@@ -370,6 +400,28 @@ impl SbsBytes<'_> {
             && (self.format == PixelFormat::Rgb8 || self.width % 2 == 0)
             && self.row_stride >= row
             && self.bytes.len() >= self.row_stride * (self.height - 1) + row
+    }
+
+    /// The RGB of pixel `(u, v)` of eye `eye` (0 left, 1 right; YUYV through
+    /// [`yuv_to_rgb`]); `None` outside the image or the bytes.
+    pub fn rgb_at(&self, eye: usize, u: usize, v: usize) -> Option<[u8; 3]> {
+        if u >= self.width || v >= self.height {
+            return None;
+        }
+        let row = v * self.row_stride;
+        match self.format {
+            PixelFormat::Rgb8 => {
+                let i = row + (eye * self.width + u) * 3;
+                let p = self.bytes.get(i..i + 3)?;
+                Some([p[0], p[1], p[2]])
+            }
+            PixelFormat::Yuyv => {
+                let i = row + (eye * self.width + (u & !1)) * 2;
+                let q = self.bytes.get(i..i + 4)?;
+                let (r, g, b) = yuv_to_rgb(if u % 2 == 0 { q[0] } else { q[2] }, q[1], q[3]);
+                Some([r, g, b])
+            }
+        }
     }
 
     /// Both eyes as RGB images (for a one-shot search over the whole frame; YUYV through

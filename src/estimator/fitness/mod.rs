@@ -198,6 +198,7 @@ impl Scorer {
                 OuterRule::RawHue => SecondByte::RawHue,
                 OuterRule::ColorClass => SecondByte::Saturation,
             },
+            gains: [1.0; 3],
         }
     }
 

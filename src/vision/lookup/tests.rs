@@ -8,6 +8,7 @@ fn rule(second: SecondByte) -> TexelRule {
     TexelRule {
         classes: ColorClasses::default(),
         second,
+        gains: [1.0; 3],
     }
 }
 
@@ -60,6 +61,29 @@ fn row_conversion_equals_the_scalar_path_on_every_colour() {
     }
 }
 
+/// Gains scale a pixel before it is classed, so a dimmed pixel gets its class back; a
+/// clipped pixel keeps its own (white stays white).
+#[test]
+fn gains_restore_the_class_of_a_dimmed_pixel_and_keep_clipped_ones() {
+    let rule = rule(SecondByte::Saturation);
+    let classed = |rule: &TexelRule, px: [u8; 3]| {
+        let mut out = [0; 1];
+        rule.rgb_row(&px, &mut out);
+        (out[0] & 0xff) as u8
+    };
+    // A light grey at half exposure reads black; doubled it is grey again.
+    assert_eq!(classed(&rule, [120, 120, 120]), GRAY);
+    assert_eq!(classed(&rule, [40, 40, 40]), BLACK);
+    assert_eq!(classed(&rule.with_gains([3.0; 3]), [40, 40, 40]), GRAY);
+    // A white balance shifted toward red: the gains bring the hue back.
+    let (hue, _, _) = rgb_to_hsv(60, 120, 200);
+    assert_eq!(classed(&rule.with_gains([0.5, 1.0, 1.25]), [120, 120, 160]), hue);
+    // Over-exposed: kept as it is, not darkened to grey.
+    assert_eq!(classed(&rule.with_gains([0.7; 3]), [255, 255, 255]), WHITE);
+    // Unit gains change nothing (the other tests check every colour with them).
+    assert_eq!(rule.with_gains([1.0; 3]), rule);
+}
+
 /// Every YUV triple: the YUYV row path equals BT.601 to RGB, then the RGB reference.
 #[test]
 fn yuyv_rows_equal_the_reference_conversion_on_every_colour() {
@@ -103,6 +127,8 @@ fn raw_side_by_side_buffers_split_into_eyes() {
     };
     let st = frame(&bytes, 20).to_images().unwrap();
     assert_eq!(st.to_sbs(), sbs);
+    assert_eq!(frame(&bytes, 20).rgb_at(1, 0, 1), Some([200, 100, 50]));
+    assert_eq!(frame(&bytes, 20).rgb_at(0, 3, 0), None, "past the eye's width");
     assert!(frame(&bytes[..37], 20).to_images().is_none());
     assert!(frame(&bytes, 17).to_images().is_none());
 }
@@ -123,6 +149,12 @@ fn yuyv_refill_equals_the_refill_of_its_rgb_conversion() {
     };
     assert!(frame.is_complete());
     let rgb = frame.to_images().unwrap().to_sbs();
+    // Single pixels read as the whole conversion (even and odd, both eyes).
+    for (eye, u, v) in [(0, 4, 1), (0, 7, 2), (1, 0, 0), (1, 9, 2)] {
+        let want = rgb.get_pixel((eye * w + u) as u32, v as u32).0;
+        assert_eq!(frame.rgb_at(eye, u, v), Some(want), "eye {eye} ({u}, {v})");
+    }
+    assert_eq!(frame.rgb_at(0, 0, h), None, "below the image");
     let rgb_frame = SbsBytes {
         bytes: rgb.as_raw(),
         width: w,
