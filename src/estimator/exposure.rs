@@ -1,10 +1,11 @@
 //! Light that changes while an object is tracked. Exposure and white balance drift
 //! (gains of 0.5–1.5× per channel) move pixels across the colour classes' brightness
 //! thresholds and shift their hues, so a tracked model's `F` falls although its pose is
-//! right. The card's own points are read on the first tracking frame after an
-//! acquisition (the reference) and at the predicted pose of every later one; the median
-//! ratio per channel gives the gains that bring a frame back to the reference's light,
-//! and its texels are classed after them ([`crate::vision::lookup::TexelRule::gains`]).
+//! right. The card's own points are read on the frame it was acquired on, at the
+//! acquired pose (the reference), and at the predicted pose of every tracked frame
+//! after it; over the middle half of the points by brightness ratio, each channel's
+//! ratio gives the gain that brings the frame back to the reference's light, and its
+//! texels are classed after them ([`crate::vision::lookup::TexelRule::gains`]).
 
 use image::RgbImage;
 use nalgebra::Isometry3;
@@ -106,8 +107,9 @@ impl Exposure {
     /// Reads the model's points at `pose` (hand frame) in the left eye of `frame`, and
     /// from them the gains that bring the frame back to the reference's light (unit gains
     /// until a reference is set), changing by at most [`MAX_STEP`] a frame. The caller
-    /// passes the pose of a tracked object only. A point the reference could not read (clipped, outside
-    /// the image) is learnt from the first frame that reads it, in the reference's light.
+    /// passes the pose of a tracked object only. A point the reference could not read
+    /// (clipped, outside the image) is learnt from the first frame that reads it, in the
+    /// reference's light.
     pub fn update(
         &mut self,
         frame: &SbsBytes,
@@ -126,11 +128,11 @@ impl Exposure {
             let Some(now) = patch_mean(&pixel, project.pixel(x, y)) else {
                 continue;
             };
+            let brightness = r.iter().sum::<f32>();
             if r[0].is_nan() {
                 self.unknown.push((i, now));
-            } else if r.iter().sum::<f32>() >= DARKEST {
-                self.pairs
-                    .push((now.iter().sum::<f32>() / r.iter().sum::<f32>(), *r, now));
+            } else if brightness >= DARKEST {
+                self.pairs.push((now.iter().sum::<f32>() / brightness, *r, now));
             }
         }
         let Some(measured) = self.gains_of_pairs() else {

@@ -442,7 +442,7 @@ pub struct StreamTracker {
     extent_px: [f64; 2],
     regions: Option<LevelLookup>,
     tracker: Tracker,
-    /// The gains that bring each frame back to the light of the first tracked frame.
+    /// The gains that bring each frame back to the light of the acquisition's frame.
     exposure: Exposure,
     ready: Option<Ready>,
 }
