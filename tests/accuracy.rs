@@ -33,11 +33,13 @@ pub fn errors(r: &Rendered, outcome: &Outcome) -> Errors {
     }
 }
 
-/// The median of `v` (NaN-free).
+/// The median of `v` (NaN-free); NaN when empty.
 pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
-    if n % 2 == 1 {
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
         v[n / 2]
     } else {
         (v[n / 2 - 1] + v[n / 2]) / 2.0

@@ -358,12 +358,15 @@ fn estimate(case: &Case, r: &Rendered) -> report::Row {
 #[test]
 #[ignore = "about 2 minutes of estimates; CI runs it (see .ci/run)"]
 fn suite_scenes() {
+    // `SCENES=cup-room,astro-dogs` runs only those scenes (no file, no floors).
+    let only = std::env::var("SCENES").ok();
+    let chosen = |c: &Case| only.as_deref().is_none_or(|o| o.split(',').any(|n| n == c.spec.name));
     let start = std::time::Instant::now();
     let cases = table::all();
     let lines = report::table(&[]);
     println!("\n{}\n{}", lines[0], lines[1]);
     let mut rows = Vec::new();
-    for (i, case) in cases.iter().enumerate() {
+    for (i, case) in cases.iter().enumerate().filter(|(_, c)| chosen(c)) {
         let r = render(case, seed(i));
         rows.push(estimate(case, &r));
         println!("{}", report::table(&rows[rows.len() - 1..])[2]);
@@ -372,6 +375,10 @@ fn suite_scenes() {
     println!();
     for line in report::summary_lines(&rows, seconds) {
         println!("{line}");
+    }
+    if only.is_some() {
+        report::assert_verdict(&rows);
+        return;
     }
     report::write_markdown(&rows, seconds);
     for line in report::target_lines(&rows) {

@@ -88,7 +88,7 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
     );
     let v = &outcome.verdict;
     println!(
-        "{}: confidence {:.2} (left–right correlation {:.3}, correlation with the photo {:.3})",
+        "{}: confidence {:.2} (left–right correlation {:.3}, correlation with the photo {:.3}, sharpness {:.3}, tilt resolution {:.2} px)",
         if v.found {
             "found"
         } else {
@@ -96,7 +96,9 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         },
         v.confidence,
         v.texture.stereo,
-        v.texture.structure
+        v.texture.structure,
+        v.sharpness,
+        v.tilt_px
     );
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&Report::new(&model, &outcome))?;

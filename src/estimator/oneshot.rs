@@ -103,7 +103,10 @@ impl Prepared {
             .iter()
             .map(|p| at.sum() - texture(p).sum())
             .fold(f64::INFINITY, f64::min);
-        Verdict::of(at, drop)
+        let rig = &self.levels[0].rig;
+        let tilt =
+            crate::estimator::verify::tilt_disparity_px(best, self.scorer.box_px, rig, &self.scorer.left_from_hand);
+        Verdict::of(at, drop, tilt)
     }
 }
 
@@ -122,6 +125,7 @@ pub fn scorer_for(model: &PhotoModel, config: &Config) -> Scorer {
     if config.ga.mode == Mode::Robust {
         scorer.min_extent_px = r.min_extent_px;
         scorer.stereo_weight = r.stereo_weight;
+        scorer.rank_by_sum = true;
     }
     scorer
 }

@@ -24,12 +24,12 @@ const MEDIANS: Errors = Errors {
 };
 
 /// Floors of the success shares, asserted against regressions: the shares measured on
-/// 2026-12-01 after the stereo term left out the points at the model's edge (clean 29
-/// of 32, hard 15 of 22) less two scenes. The search with other random streams has
+/// 2026-12-01 after the robust mode ranked by `F_L + F_R` (clean 30 of 32, hard 16 of
+/// 22) less two scenes. The search with other random streams has
 /// moved by one or two scenes either way. The targets above are reported, not
 /// asserted, until they are reached.
-const CLEAN_FLOOR: f64 = 0.84;
-const HARD_FLOOR: f64 = 0.59;
+const CLEAN_FLOOR: f64 = 0.87;
+const HARD_FLOOR: f64 = 0.63;
 /// A pose this far off must never be reported found: position mm, rotation degrees.
 const WRONG_MM: f64 = 20.0;
 const WRONG_DEG: f64 = 10.0;
@@ -87,15 +87,15 @@ fn cells(e: &Errors) -> [String; 3] {
 /// The header and one line per row, as Markdown table lines.
 pub fn table(rows: &[Row]) -> Vec<String> {
     let mut lines = vec![
-        "| scene | kind | res | px | pos mm | size % | rot ° | found | conf | stereo | struct | sharp | paper pos | size % | rot ° | score | truth score | truth > result | s |"
+        "| scene | kind | res | px | pos mm | size % | rot ° | found | conf | stereo | struct | sharp | tilt px | paper pos | size % | rot ° | score | truth score | truth > result | s |"
             .to_string(),
-        "|---|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|".to_string(),
+        "|---|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|".to_string(),
     ];
     for r in rows {
         let [p, s, o] = cells(&r.robust);
         let [pp, ps, po] = cells(&r.paper);
         lines.push(format!(
-            "| {} | {} | {} | {:.0} | {p} | {s} | {o} | {} | {:.2} | {:.3} | {:.3} | {:.3} | {pp} | {ps} | {po} | {:.3} | {:.3} | {} | {:.1} |",
+            "| {} | {} | {} | {:.0} | {p} | {s} | {o} | {} | {:.2} | {:.3} | {:.3} | {:.3} | {:.2} | {pp} | {ps} | {po} | {:.3} | {:.3} | {} | {:.1} |",
             r.name,
             if r.hard { "hard" } else { "clean" },
             r.resolution,
@@ -105,6 +105,7 @@ pub fn table(rows: &[Row]) -> Vec<String> {
             r.verdict.texture.stereo,
             r.verdict.texture.structure,
             r.verdict.sharpness,
+            r.verdict.tilt_px,
             r.score_result,
             r.score_truth,
             if r.truth_outranks() { "yes" } else { "" },
@@ -228,15 +229,7 @@ pub fn target_lines(rows: &[Row]) -> Vec<String> {
 /// What the suite asserts: no wrong pose reported found, and the success shares at or
 /// above their floors.
 pub fn assert_promises(rows: &[Row]) {
-    let false_found: Vec<&str> = rows
-        .iter()
-        .filter(|r| r.verdict.found && r.wrong())
-        .map(|r| r.name)
-        .collect();
-    assert!(
-        false_found.is_empty(),
-        "poses more than 20 mm or 10° off reported found: {false_found:?}"
-    );
+    assert_verdict(rows);
     for (hard, floor) in [(false, CLEAN_FLOOR), (true, HARD_FLOOR)] {
         let s = summary(rows, hard);
         assert!(
@@ -247,4 +240,17 @@ pub fn assert_promises(rows: &[Row]) {
             floor * 100.0
         );
     }
+}
+
+/// No result more than 20 mm or 10° off is reported found.
+pub fn assert_verdict(rows: &[Row]) {
+    let false_found: Vec<&str> = rows
+        .iter()
+        .filter(|r| r.verdict.found && r.wrong())
+        .map(|r| r.name)
+        .collect();
+    assert!(
+        false_found.is_empty(),
+        "poses more than 20 mm or 10° off reported found: {false_found:?}"
+    );
 }

@@ -153,6 +153,11 @@ pub struct Scorer {
     pub min_extent_px: f64,
     /// Weight of the left–right agreement in [`Fitness::score`] (0: rank by `F` alone).
     pub stereo_weight: f64,
+    /// Rank by `F_L + F_R` instead of `F`, i.e. without eq. 17's similarity factor `g`
+    /// (robust mode). An occluder in front of the card hides different parts of it in
+    /// each eye, and `g` punished that more than a model shrunk onto the visible part;
+    /// the stereo terms check the depth instead.
+    pub rank_by_sum: bool,
     /// Model frame size `L_P`, `B_P` in photo pixels.
     pub box_px: [f64; 2],
     /// `CL_T_H`: hand coordinates → left-camera coordinates (mm), the hand–eye calibration.
@@ -182,6 +187,7 @@ impl Scorer {
             sat_tolerance,
             min_extent_px: 0.0,
             stereo_weight: 0.0,
+            rank_by_sum: false,
             box_px: [model.l_p, model.b_p],
             left_from_hand,
             mean_hue: (model.mean_hue.round() as u32 % 180) as u8,
@@ -272,7 +278,7 @@ impl Scorer {
             f,
             left: fl,
             right: fr,
-            score: f + self.stereo_weight * confirmed,
+            score: if self.rank_by_sum { fl + fr } else { f } + self.stereo_weight * confirmed,
         }
     }
 

@@ -6,6 +6,7 @@ pub mod texture;
 
 use nalgebra::{Isometry3, Vector3};
 
+use crate::camera::StereoRig;
 use crate::estimator::fitness::PointSet;
 use crate::estimator::pose::PoseSize;
 use crate::vision::frame::StereoImages;
@@ -61,32 +62,52 @@ pub struct Verdict {
     /// The least drop of their sum when the pose is moved by the tolerance
     /// ([`perturbations`]); negative when a moved pose scores higher.
     pub sharpness: f64,
+    /// How well the stereo pair resolves the tilt there ([`tilt_disparity_px`]).
+    pub tilt_px: f64,
 }
 
 impl Verdict {
-    /// The verdict on a pose whose texture terms at full resolution are `texture` and
-    /// whose [`perturbations`] lower their sum by at least `sharpness`.
+    /// The verdict on a pose whose texture terms at full resolution are `texture`,
+    /// whose [`perturbations`] lower their sum by at least `sharpness`, and whose tilt
+    /// the stereo pair resolves by `tilt_px` ([`tilt_disparity_px`]).
     ///
-    /// The confidence is the weakest of three, each mapped linearly to 0–1: the stereo
-    /// term from 0.70 (1 at 0.90), the structure term from 0.75 (1 at 0.95) and the
-    /// sharpness from 0 (1 at 0.04). A pose is reported found from confidence 0.75 up,
-    /// that is stereo ≥ 0.85, structure ≥ 0.90 and sharpness ≥ 0.03. On the accuracy
-    /// suite every wrong pose (more than 20 mm or 10° off) that the other two inputs let
-    /// through had a sharpness of at most −0.006, and all but 1 of the 44 right ones at
-    /// least 0.03: a pose that a nearby pose beats is no peak, and a wrong one seldom is.
-    pub fn of(texture: Texture, sharpness: f64) -> Self {
+    /// The confidence is the weakest of four, each mapped linearly to 0–1: the stereo
+    /// term from 0.70 (1 at 0.90), the structure term from 0.75 (1 at 0.95), the
+    /// sharpness from 0 (1 at 0.04) and the tilt resolution from 0.9 px (1 at 1.3 px).
+    /// A pose is reported found from confidence 0.75 up, that is stereo ≥ 0.85,
+    /// structure ≥ 0.90, sharpness ≥ 0.03 and tilt resolution ≥ 1.2 px. On the accuracy
+    /// suite every wrong pose (more than 20 mm or 10° off) that the texture terms let
+    /// through had a sharpness of at most −0.006, or a tilt resolution of 1.1 px or less
+    /// (a 66 px card 1 m away, 19° off), and all but 1 of the 44 right ones at least
+    /// 0.03 and 1.5 px.
+    pub fn of(texture: Texture, sharpness: f64, tilt_px: f64) -> Self {
         let ramp = |v: f64, zero: f64, one: f64| (v - zero) / (one - zero);
         let confidence = ramp(texture.stereo, 0.70, 0.90)
             .min(ramp(texture.structure, 0.75, 0.95))
             .min(ramp(sharpness, 0.0, 0.04))
+            .min(ramp(tilt_px, 0.9, 1.3))
             .clamp(0.0, 1.0);
         Self {
             found: confidence >= FOUND_CONFIDENCE,
             confidence,
             texture,
             sharpness,
+            tilt_px,
         }
     }
+}
+
+/// How many pixels the disparity across the card changes when it turns 10° about the
+/// axis along its longer side (so its shorter side tilts): `f · b · s · sin 10° / z²`
+/// for focal length `f` (full-resolution pixels), baseline `b`, the shorter side `s`
+/// and the depth `z` of `p`'s centre. Below about a pixel the two eyes see the same
+/// image at either tilt, and colour and texture alone cannot tell tilt from the aspect
+/// of an unknown instance; the tilt is then not determined.
+pub fn tilt_disparity_px(p: &PoseSize, box_px: [f64; 2], rig: &StereoRig, left_from_hand: &Isometry3<f64>) -> f64 {
+    let z = (left_from_hand * nalgebra::Point3::from(p.position)).z.max(1.0);
+    let [l, b] = p.size_mm(box_px[0], box_px[1]);
+    let baseline = rig.right_from_left.translation.vector.norm();
+    rig.left.fx * baseline * l.min(b) * 10f64.to_radians().sin() / (z * z)
 }
 
 /// The least confidence reported as found.
@@ -124,7 +145,7 @@ mod tests {
     use super::*;
 
     fn verdict(stereo: f64, structure: f64, sharpness: f64) -> Verdict {
-        Verdict::of(Texture { stereo, structure }, sharpness)
+        Verdict::of(Texture { stereo, structure }, sharpness, 2.0)
     }
 
     #[test]
@@ -136,6 +157,14 @@ mod tests {
             verdict(0.851, 1.0, 0.2),
             verdict(1.0, 0.901, 0.2),
             verdict(1.0, 1.0, 0.0301),
+            Verdict::of(
+                Texture {
+                    stereo: 1.0,
+                    structure: 1.0,
+                },
+                0.2,
+                1.201,
+            ),
         ] {
             assert!((v.confidence - 0.75).abs() < 0.01 && v.found, "{v:?}");
         }
@@ -145,10 +174,41 @@ mod tests {
             verdict(1.0, 0.89, 0.2),
             verdict(1.0, 1.0, 0.029),
             verdict(1.0, 1.0, -0.01),
+            Verdict::of(
+                Texture {
+                    stereo: 1.0,
+                    structure: 1.0,
+                },
+                0.2,
+                1.19,
+            ),
         ] {
             assert!(!v.found, "{v:?}");
         }
         assert_eq!(verdict(0.2, 0.1, -1.0).confidence, 0.0);
+    }
+
+    #[test]
+    fn tilt_resolution_falls_with_the_square_of_depth() {
+        let rig = crate::config::Config::load(None)
+            .unwrap()
+            .calibration
+            .rig_for_image(1280, 720)
+            .unwrap();
+        let at = |z: f64, side: f64| {
+            let pose = Isometry3::new(Vector3::new(0.0, 0.0, z), Vector3::zeros());
+            let p = PoseSize::from_pose(&pose, [2.0 * side, side], 200.0, 100.0);
+            tilt_disparity_px(&p, [200.0, 100.0], &rig, &Isometry3::identity())
+        };
+        // f · b · s · sin 10° / z² with the example HD calibration (f 700 px, b 120 mm).
+        let expected = rig.left.fx * 120.0 * 66.0 * 10f64.to_radians().sin() / 1e6;
+        assert!(
+            (at(1000.0, 66.0) - expected).abs() < 0.02 * expected,
+            "{}",
+            at(1000.0, 66.0)
+        );
+        assert!((at(500.0, 66.0) / at(1000.0, 66.0) - 4.0).abs() < 1e-6);
+        assert!((at(1000.0, 132.0) / at(1000.0, 66.0) - 2.0).abs() < 1e-6);
     }
 
     #[test]
