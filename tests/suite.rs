@@ -358,8 +358,12 @@ fn estimate(case: &Case, r: &Rendered) -> report::Row {
 #[test]
 #[ignore = "about 2 minutes of estimates; CI runs it (see .ci/run)"]
 fn suite_scenes() {
-    // `SCENES=cup-room,astro-dogs` runs only those scenes (no file, no floors).
+    // `SCENES=cup-room,astro-dogs` runs only those scenes, `SEARCH_SEED=2` searches
+    // from another seed than the configured one (either: no file, no floors).
     let only = std::env::var("SCENES").ok();
+    let search_seed: Option<u64> = std::env::var("SEARCH_SEED")
+        .ok()
+        .map(|s| s.parse().expect("SEARCH_SEED is a whole number"));
     let chosen = |c: &Case| only.as_deref().is_none_or(|o| o.split(',').any(|n| n == c.spec.name));
     let start = std::time::Instant::now();
     let cases = table::all();
@@ -367,7 +371,8 @@ fn suite_scenes() {
     println!("\n{}\n{}", lines[0], lines[1]);
     let mut rows = Vec::new();
     for (i, case) in cases.iter().enumerate().filter(|(_, c)| chosen(c)) {
-        let r = render(case, seed(i));
+        let mut r = render(case, seed(i));
+        r.config.ga.seed = search_seed.unwrap_or(r.config.ga.seed);
         rows.push(estimate(case, &r));
         println!("{}", report::table(&rows[rows.len() - 1..])[2]);
     }
@@ -376,7 +381,7 @@ fn suite_scenes() {
     for line in report::summary_lines(&rows, seconds) {
         println!("{line}");
     }
-    if only.is_some() {
+    if only.is_some() || search_seed.is_some() {
         report::assert_verdict(&rows);
         return;
     }
