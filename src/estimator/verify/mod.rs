@@ -77,9 +77,9 @@ impl Verdict {
     /// A pose is reported found from confidence 0.75 up, that is stereo ≥ 0.85,
     /// structure ≥ 0.90, sharpness ≥ 0.03 and tilt resolution ≥ 1.2 px. On the accuracy
     /// suite every wrong pose (more than 20 mm or 10° off) that the texture terms let
-    /// through had a sharpness of at most −0.006, or a tilt resolution of 1.1 px or less
-    /// (a 66 px card 1 m away, 19° off), and all but 1 of the 44 right ones at least
-    /// 0.03 and 1.5 px.
+    /// through had a sharpness of at most −0.006, or a tilt resolution of 0.85 px (a
+    /// 66 px card 1 m away, 19° off); all but 1 of the 46 right ones had a sharpness of
+    /// at least 0.03, and all a tilt resolution of at least 1.5 px.
     pub fn of(texture: Texture, sharpness: f64, tilt_px: f64) -> Self {
         let ramp = |v: f64, zero: f64, one: f64| (v - zero) / (one - zero);
         let confidence = ramp(texture.stereo, 0.70, 0.90)
