@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use image::RgbImage;
 use nalgebra::{Isometry3, Translation3, Vector3};
+use photopose::camera::calibration::{Calibration, Resolution};
 use photopose::camera::StereoRig;
 use photopose::capture::synthetic::SyntheticSource;
 use photopose::capture::{FrameSource, Truth};
@@ -14,7 +15,9 @@ use photopose::cli::estimator::pose_msg;
 use photopose::cli::report::stats::Samples;
 use photopose::config::Config;
 use photopose::estimator::model::PhotoModel;
+use photopose::estimator::pose::PoseSize;
 use photopose::estimator::tracking::{Estimate, StreamTracker, TrackState, RELOCATE_GENERATIONS};
+use photopose::estimator::verify::tilt_disparity_px;
 use photopose::render::{self, Background, Card, Scene};
 use photopose::transport::messages::PoseMsg;
 use photopose::transport::messages::Status;
@@ -134,6 +137,55 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
         errors.len()
     );
     assert!(p95 <= 10.0, "p95 tracking error {p95:.1} mm");
+}
+
+/// A card that recedes until the stereo pair cannot resolve its tilt is followed but no
+/// longer called `tracking`. The rig's baseline is narrowed to 40 mm so that this
+/// happens inside the search space: the rocket card's 159 mm side then changes the
+/// disparity by 1.2 px per 10° of tilt at about 0.8 m, the verdict's least.
+#[test]
+fn a_card_whose_tilt_is_not_resolved_is_followed_but_not_tracking() {
+    let (spec, mut r, _, mut scene) = rocket_scene();
+    let conf = crate::common::repo("config/SN-example.conf");
+    let text = std::fs::read_to_string(&conf)
+        .unwrap()
+        .replace("Baseline=119.934", "Baseline=40");
+    r.config.calibration = Calibration::parse(&text, &conf).unwrap();
+    let rig = r.config.calibration.rig(Resolution::HD).unwrap();
+    let mut tracker = StreamTracker::new(r.model.clone(), r.config.clone());
+    let left_from_start = r.config.left_from_hand * r.hand_from_model;
+    let (mut tracked, mut followed) = (0, 0);
+    for i in 0..80 {
+        // 4 mm further a frame along the line of sight, 650 → 966 mm.
+        let z = spec.position[2] + 4.0 * i as f64;
+        let mut left_from_model = left_from_start;
+        left_from_model.translation.vector *= z / spec.position[2];
+        scene.card.hand_from_model = r.config.left_from_hand.inverse() * left_from_model;
+        let (est, _) = step(&mut tracker, &rig, &r, &scene);
+        let truth = PoseSize::from_pose(&scene.card.hand_from_model, spec.size_mm, r.model.l_p, r.model.b_p);
+        let tilt_px = tilt_disparity_px(&truth, [r.model.l_p, r.model.b_p], &rig, &r.config.left_from_hand);
+        let err = (est.best.position - truth.position).norm();
+        if i > 0 && tilt_px >= 1.4 {
+            assert_eq!(
+                est.state,
+                TrackState::Tracking,
+                "{z:.0} mm, {tilt_px:.2} px: {err:.1} mm off"
+            );
+            tracked += 1;
+        } else if tilt_px < 1.0 {
+            assert_eq!(
+                est.state,
+                TrackState::Searching,
+                "{z:.0} mm, {tilt_px:.2} px: {err:.1} mm off"
+            );
+            assert!(err < 30.0, "{z:.0} mm: not followed, {err:.1} mm off");
+            followed += 1;
+        }
+    }
+    assert!(
+        tracked >= 10 && followed >= 10,
+        "{tracked} tracked, {followed} followed"
+    );
 }
 
 /// The card vanishes: every pose stays sound (finite, unit quaternion), and a pose whose

@@ -23,6 +23,7 @@ use crate::estimator::model::PhotoModel;
 use crate::estimator::oneshot::{scorer_for, Prepared};
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::{GaSettings, Mode, RobustSettings, TrackingSettings};
+use crate::estimator::verify::tilt_resolved;
 use crate::vision::frame::Region;
 use crate::vision::lookup::{LevelLookup, SbsBytes};
 
@@ -44,10 +45,21 @@ pub struct Estimate {
 pub enum TrackState {
     /// The object is tracked; the pose is current.
     Tracking,
-    /// The fitness is low: (re)acquiring; the pose is the best guess so far.
+    /// The fitness is low, (re)acquiring, or the tilt is not resolved: the pose is the
+    /// best guess so far.
     Searching,
     /// Nothing matches; the pose must not be acted on.
     Lost,
+}
+
+impl TrackState {
+    /// This status with `tracking` lowered to `searching`.
+    pub fn not_tracking(self) -> Self {
+        match self {
+            TrackState::Tracking => TrackState::Searching,
+            other => other,
+        }
+    }
 }
 
 /// Share of each generation's children also rescaled about one of their edges
@@ -548,7 +560,14 @@ impl StreamTracker {
                 let regions = std::slice::from_ref(self.regions.as_ref()?);
                 let threads = self.config.tracking.threads;
                 let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
-                self.tracker.step(&problem)
+                let mut estimate = self.tracker.step(&problem);
+                // A pose whose tilt the stereo pair cannot resolve (a small card far
+                // away) is followed but not called tracking: its orientation is a guess.
+                let s = &self.scorer;
+                if !tilt_resolved(&estimate.best, s.box_px, &regions[0].rig, &s.left_from_hand) {
+                    estimate.state = estimate.state.not_tracking();
+                }
+                estimate
             }
             Ready::Whole(prepared, left) => {
                 let plan = self.tracker.plan();

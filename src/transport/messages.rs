@@ -168,7 +168,8 @@ pub fn validate_frame(header: &FrameHeader, payload_len: usize) -> Result<PixelF
 pub enum Status {
     /// The object is tracked; the pose is current.
     Tracking = 0,
-    /// The estimator is (re)acquiring; the pose is the best guess so far.
+    /// The estimator is (re)acquiring, or follows an object whose tilt the stereo pair
+    /// cannot resolve; the pose is the best guess so far.
     Searching = 1,
     /// Nothing matches; do not act on the pose.
     Lost = 2,

@@ -81,11 +81,10 @@ impl Verdict {
     /// 66 px card 1 m away, 19° off); all but 1 of the 46 right ones had a sharpness of
     /// at least 0.03, and all a tilt resolution of at least 1.5 px.
     pub fn of(texture: Texture, sharpness: f64, tilt_px: f64) -> Self {
-        let ramp = |v: f64, zero: f64, one: f64| (v - zero) / (one - zero);
         let confidence = ramp(texture.stereo, 0.70, 0.90)
             .min(ramp(texture.structure, 0.75, 0.95))
             .min(ramp(sharpness, 0.0, 0.04))
-            .min(ramp(tilt_px, 0.9, 1.3))
+            .min(tilt_confidence(tilt_px))
             .clamp(0.0, 1.0);
         Self {
             found: confidence >= FOUND_CONFIDENCE,
@@ -108,6 +107,23 @@ pub fn tilt_disparity_px(p: &PoseSize, box_px: [f64; 2], rig: &StereoRig, left_f
     let [l, b] = p.size_mm(box_px[0], box_px[1]);
     let baseline = rig.right_from_left.translation.vector.norm();
     rig.left.fx * baseline * l.min(b) * 10f64.to_radians().sin() / (z * z)
+}
+
+/// `v` mapped linearly from `zero` (0) to `one` (1), not clamped.
+fn ramp(v: f64, zero: f64, one: f64) -> f64 {
+    (v - zero) / (one - zero)
+}
+
+/// The verdict's confidence input from the tilt resolution: 0 at 0.9 px, 1 at 1.3 px.
+fn tilt_confidence(tilt_px: f64) -> f64 {
+    ramp(tilt_px, 0.9, 1.3)
+}
+
+/// Whether the stereo pair resolves the tilt of `p` as well as the verdict asks of a
+/// pose it calls found (a tilt resolution of at least 1.2 px): what the tracker asks of
+/// every frame it calls `tracking`, the colour fitness alone judging the rest.
+pub fn tilt_resolved(p: &PoseSize, box_px: [f64; 2], rig: &StereoRig, left_from_hand: &Isometry3<f64>) -> bool {
+    tilt_confidence(tilt_disparity_px(p, box_px, rig, left_from_hand)) >= FOUND_CONFIDENCE
 }
 
 /// The least confidence reported as found.
@@ -144,48 +160,34 @@ pub fn perturbations(p: &PoseSize, left_from_hand: &Isometry3<f64>) -> Vec<PoseS
 mod tests {
     use super::*;
 
-    fn verdict(stereo: f64, structure: f64, sharpness: f64) -> Verdict {
-        Verdict::of(Texture { stereo, structure }, sharpness, 2.0)
+    fn verdict(stereo: f64, structure: f64, sharpness: f64, tilt_px: f64) -> Verdict {
+        Verdict::of(Texture { stereo, structure }, sharpness, tilt_px)
     }
 
     #[test]
     fn the_weakest_input_sets_the_confidence() {
-        let v = verdict(1.0, 1.0, 0.2);
+        let v = verdict(1.0, 1.0, 0.2, 2.0);
         assert!(v.found && v.confidence == 1.0);
         // Each input alone just above its threshold (confidence 0.75) is just found.
         for v in [
-            verdict(0.851, 1.0, 0.2),
-            verdict(1.0, 0.901, 0.2),
-            verdict(1.0, 1.0, 0.0301),
-            Verdict::of(
-                Texture {
-                    stereo: 1.0,
-                    structure: 1.0,
-                },
-                0.2,
-                1.201,
-            ),
+            verdict(0.851, 1.0, 0.2, 2.0),
+            verdict(1.0, 0.901, 0.2, 2.0),
+            verdict(1.0, 1.0, 0.0301, 2.0),
+            verdict(1.0, 1.0, 0.2, 1.201),
         ] {
             assert!((v.confidence - 0.75).abs() < 0.01 && v.found, "{v:?}");
         }
         // Just below any threshold, or a pose a nearby pose beats: not found.
         for v in [
-            verdict(0.84, 1.0, 0.2),
-            verdict(1.0, 0.89, 0.2),
-            verdict(1.0, 1.0, 0.029),
-            verdict(1.0, 1.0, -0.01),
-            Verdict::of(
-                Texture {
-                    stereo: 1.0,
-                    structure: 1.0,
-                },
-                0.2,
-                1.19,
-            ),
+            verdict(0.84, 1.0, 0.2, 2.0),
+            verdict(1.0, 0.89, 0.2, 2.0),
+            verdict(1.0, 1.0, 0.029, 2.0),
+            verdict(1.0, 1.0, -0.01, 2.0),
+            verdict(1.0, 1.0, 0.2, 1.19),
         ] {
             assert!(!v.found, "{v:?}");
         }
-        assert_eq!(verdict(0.2, 0.1, -1.0).confidence, 0.0);
+        assert_eq!(verdict(0.2, 0.1, -1.0, 2.0).confidence, 0.0);
     }
 
     #[test]
@@ -209,6 +211,15 @@ mod tests {
         );
         assert!((at(500.0, 66.0) / at(1000.0, 66.0) - 4.0).abs() < 1e-6);
         assert!((at(1000.0, 132.0) / at(1000.0, 66.0) - 2.0).abs() < 1e-6);
+        // What the tracker asks of a `tracking` frame is what the verdict asks of a
+        // found pose: 1.2 px (for this 66 mm side, out to about 0.9 m).
+        let resolved = |z: f64| {
+            let pose = Isometry3::new(Vector3::new(0.0, 0.0, z), Vector3::zeros());
+            let p = PoseSize::from_pose(&pose, [2.0 * 66.0, 66.0], 200.0, 100.0);
+            tilt_resolved(&p, [200.0, 100.0], &rig, &Isometry3::identity())
+        };
+        let z = (expected / 1.2).sqrt() * 1000.0;
+        assert!(resolved(0.99 * z) && !resolved(1.01 * z), "{z}");
     }
 
     #[test]
