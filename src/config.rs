@@ -38,12 +38,12 @@ const BUILT_IN_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/config");
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     /// The file could not be read.
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}: {reason}")]
     Read {
         /// The configuration file.
         path: PathBuf,
         /// Why it could not be read.
-        source: std::io::Error,
+        reason: std::io::Error,
     },
     /// The file is not TOML, or not the tables and keys photopose knows.
     #[error("{path}: {message}")]
@@ -187,9 +187,9 @@ impl Config {
         match path {
             None => Self::parse(DEFAULT_TOML, Path::new("config/default.toml (built in)"), None),
             Some(p) => {
-                let text = std::fs::read_to_string(p).map_err(|source| ConfigError::Read {
+                let text = std::fs::read_to_string(p).map_err(|reason| ConfigError::Read {
                     path: p.to_path_buf(),
-                    source,
+                    reason,
                 })?;
                 let dir = p.parent().unwrap_or(Path::new("."));
                 Self::parse(&text, p, Some(dir))

@@ -339,3 +339,46 @@ fn one_shot_is_the_same_on_one_and_two_threads() {
     assert_eq!(one.best, two.best, "same pose and size on 1 and 2 threads");
     assert_eq!(one.fitness.score, two.fitness.score);
 }
+
+/// A search whose verdict finds nothing runs again (`[robust] retries`) from the next
+/// seed, one pyramid level finer, and keeps the better-scoring result; a search that
+/// finds its object runs once.
+#[test]
+fn a_search_that_finds_nothing_runs_again_finer() {
+    let specs = scenes::all();
+    let r = scenes::render(&specs[0], 100);
+    let other = specs.iter().find(|s| s.photo != specs[0].photo).expect("another photo");
+    let absent = scenes::model(other, &r.config);
+    let search = |model: &photopose::estimator::model::PhotoModel, levels: usize, retries: usize, seed: u64| {
+        let mut config = r.config.clone();
+        config.robust.pyramid_levels = levels;
+        config.robust.retries = retries;
+        oneshot::run(model, &r.images, &config, 300, seed, &mut |_| {}).expect("calibrated")
+    };
+    let first = search(&absent, 3, 0, 7);
+    assert!(
+        !first.verdict.found,
+        "the other photo is not in the scene: {:?}",
+        first.verdict
+    );
+    let finer = search(&absent, 2, 0, 8);
+    let both = search(&absent, 3, 1, 7);
+    assert_eq!(
+        (both.searches, both.evaluations),
+        (2, first.evaluations + finer.evaluations)
+    );
+    let kept = if first.fitness.score >= finer.fitness.score {
+        &first
+    } else {
+        &finer
+    };
+    assert_eq!((both.best, both.fitness.score), (kept.best, kept.fitness.score));
+
+    let once = search(&r.model, 3, 0, 7);
+    assert!(once.verdict.found, "{}: {:?}", r.spec.name, once.verdict);
+    let found = search(&r.model, 3, 3, 7);
+    assert_eq!(
+        (found.searches, found.best, found.evaluations),
+        (1, once.best, once.evaluations)
+    );
+}

@@ -198,6 +198,18 @@ fn bad_input_gives_one_line_naming_the_file() {
         &model_with_config(&coffee, &p("x.model"), &p("bad-cal.toml")),
         &["invalid-not-a-number.conf"],
     );
+    // A missing model or configuration: the file and the system's reason, said once.
+    let missing = [
+        photopose(&["estimate", "--model", &p("missing.model"), "--sbs", &p("odd-size.png")]),
+        model_with_config(&coffee, &p("x.model"), &p("missing.toml")),
+    ];
+    for (out, file) in missing.iter().zip(["missing.model", "missing.toml"]) {
+        let said = format!(
+            "error: cannot read {}: No such file or directory (os error 2)\n",
+            p(file)
+        );
+        assert_eq!(String::from_utf8_lossy(&out.stderr), said);
+    }
     assert!(!Path::new(&p("x.model")).exists(), "nothing written on error");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -33,9 +33,9 @@ const CARDS: [(&str, [i64; 4]); 4] = [
     ("rocket.jpg", [150, 60, 340, 300]),
 ];
 
-/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-01: 31 of 40; the
+/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-02: 34 of 40; the
 /// floor is 2 scenes below (a guard against regressions, not the target).
-const SUCCESS_FLOOR: f64 = 0.72;
+const SUCCESS_FLOOR: f64 = 0.79;
 
 /// One random scene's parameters and its rendering.
 struct Drawn {

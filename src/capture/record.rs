@@ -51,7 +51,7 @@ impl Recorder {
         }
         let write_error = |path: &Path| {
             let path = path.to_path_buf();
-            move |source| SequenceError::Write { path, source }
+            move |reason| SequenceError::Write { path, reason }
         };
         std::fs::create_dir_all(dir).map_err(write_error(dir))?;
         let info = SequenceInfo::new(geometry, source);
@@ -155,9 +155,9 @@ fn extension(format: PixelFormat) -> &'static str {
 
 /// Writes one frame file: PNG (fast compression) for RGB8, the raw bytes for YUYV.
 fn write_frame(path: &Path, geometry: Geometry, bytes: &[u8]) -> Result<(), SequenceError> {
-    let io = |source| SequenceError::Write {
+    let io = |reason| SequenceError::Write {
         path: path.to_path_buf(),
-        source,
+        reason,
     };
     let mut out = BufWriter::new(File::create(path).map_err(io)?);
     match geometry.format {

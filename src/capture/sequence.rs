@@ -42,20 +42,20 @@ pub const CSV_HEADER: &str = "frame_id,capture_time_ns,file,x_mm,y_mm,z_mm,qw,qx
 #[derive(Debug, thiserror::Error)]
 pub enum SequenceError {
     /// A file of the recording cannot be read.
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}: {reason}")]
     Read {
         /// The file.
         path: PathBuf,
         /// The system's reason.
-        source: std::io::Error,
+        reason: std::io::Error,
     },
     /// A file of the recording cannot be written.
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}: {reason}")]
     Write {
         /// The file.
         path: PathBuf,
         /// The system's reason.
-        source: std::io::Error,
+        reason: std::io::Error,
     },
     /// `sequence.toml` is not a valid recording description.
     #[error("{path}: {message}")]
@@ -338,9 +338,9 @@ impl Sequence {
     /// Reads and checks `DIR/sequence.toml` and `DIR/frames.csv` (not the frames).
     pub fn open(dir: &Path) -> Result<Self, SequenceError> {
         let info_path = dir.join(INFO_FILE);
-        let text = std::fs::read_to_string(&info_path).map_err(|source| SequenceError::Read {
+        let text = std::fs::read_to_string(&info_path).map_err(|reason| SequenceError::Read {
             path: info_path.clone(),
-            source,
+            reason,
         })?;
         let info: SequenceInfo = toml::from_str(&text).map_err(|e| SequenceError::Invalid {
             path: info_path.clone(),
@@ -348,9 +348,9 @@ impl Sequence {
         })?;
         let geometry = info.geometry(&info_path)?;
         let csv_path = dir.join(FRAMES_FILE);
-        let text = std::fs::read_to_string(&csv_path).map_err(|source| SequenceError::Read {
+        let text = std::fs::read_to_string(&csv_path).map_err(|reason| SequenceError::Read {
             path: csv_path.clone(),
-            source,
+            reason,
         })?;
         let line_error = |line: u64, message: String| SequenceError::Line {
             path: csv_path.clone(),

@@ -82,8 +82,12 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let elapsed = start.elapsed().as_secs_f64();
     print!("{}", oneshot::table(&model, &outcome));
+    let searches = match outcome.searches {
+        1 => String::new(),
+        n => format!("{n} searches of "),
+    };
     println!(
-        "mode {:?}, {} generations, {} evaluations in {:.3} s; F_L {:.4}, F_R {:.4} (pose of the model in the hand frame)",
+        "mode {:?}, {searches}{} generations, {} evaluations in {:.3} s; F_L {:.4}, F_R {:.4} (pose of the model in the hand frame)",
         config.ga.mode, outcome.generations, outcome.evaluations, elapsed, outcome.fitness.left, outcome.fitness.right
     );
     let v = &outcome.verdict;

@@ -47,20 +47,20 @@ pub enum ModelError {
         h: i64,
     },
     /// The model file could not be read.
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}: {reason}")]
     Read {
         /// The model file.
         path: PathBuf,
         /// The I/O error.
-        source: std::io::Error,
+        reason: std::io::Error,
     },
     /// The model file could not be written.
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}: {reason}")]
     Write {
         /// The model file.
         path: PathBuf,
         /// The I/O error.
-        source: std::io::Error,
+        reason: std::io::Error,
     },
     /// The text is not JSON of a photopose model (or the model would not serialise).
     #[error("{path}: not a photopose model: {message}")]
@@ -235,9 +235,9 @@ impl PhotoModel {
 
     /// Reads and checks a model file.
     pub fn load(path: &Path) -> Result<PhotoModel, ModelError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Read {
+        let text = std::fs::read_to_string(path).map_err(|reason| ModelError::Read {
             path: path.to_path_buf(),
-            source,
+            reason,
         })?;
         Self::parse(&text, path)
     }
@@ -299,9 +299,9 @@ impl PhotoModel {
             path: path.to_path_buf(),
             message: e.to_string(),
         })?;
-        std::fs::write(path, text).map_err(|source| ModelError::Write {
+        std::fs::write(path, text).map_err(|reason| ModelError::Write {
             path: path.to_path_buf(),
-            source,
+            reason,
         })
     }
 

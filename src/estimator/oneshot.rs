@@ -72,7 +72,15 @@ impl Prepared {
 
     /// The search problem over this frame (in robust mode with the texture terms).
     pub fn problem<'a>(&'a self, config: &Config) -> Problem<'a> {
-        let problem = Problem::new(&self.scorer, &self.levels, &self.points, self.bounds, config.ga.threads);
+        self.problem_on(config, self.levels.len())
+    }
+
+    /// [`Prepared::problem`] on the finest `levels` pyramid levels only: its search
+    /// starts on a finer level, where small or faint targets still show.
+    fn problem_on<'a>(&'a self, config: &Config, levels: usize) -> Problem<'a> {
+        let levels = levels.clamp(1, self.levels.len());
+        let (lookups, points) = (&self.levels[..levels], &self.points[..levels]);
+        let problem = Problem::new(&self.scorer, lookups, points, self.bounds, config.ga.threads);
         let weight = config.robust.texture_weight;
         if self.mode == Mode::Paper || weight == 0.0 {
             return problem;
@@ -81,7 +89,7 @@ impl Prepared {
             pyramid: &self.brightness,
             points: &self.texture_points,
             weight,
-            below_level: self.levels.len() - 1,
+            below_level: levels - 1,
         })
     }
 
@@ -143,7 +151,9 @@ pub fn run(
     Ok(search(&prepared, config, generations, seed, progress))
 }
 
-/// Runs the configured GA on an already prepared frame.
+/// Runs the configured GA on an already prepared frame; in robust mode it searches
+/// again from the next seed while the verdict finds nothing (`[robust] retries`) and keeps
+/// the best-scoring result.
 pub fn search(
     prepared: &Prepared,
     config: &Config,
@@ -163,14 +173,53 @@ pub fn search_observed(
     progress: &mut dyn FnMut(usize),
     observer: Option<ga::observe::Observer<'_>>,
 ) -> Outcome {
-    let mut problem = prepared.problem(config);
-    problem.observer = observer;
-    let mut outcome = match prepared.mode {
-        Mode::Paper => ga::paper::run(&problem, &config.ga, generations, seed, progress),
-        Mode::Robust => ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress),
-    };
-    outcome.verdict = prepared.verdict(&outcome.best);
-    outcome
+    if prepared.mode == Mode::Paper {
+        let mut problem = prepared.problem(config);
+        problem.observer = observer;
+        let mut outcome = ga::paper::run(&problem, &config.ga, generations, seed, progress);
+        outcome.verdict = prepared.verdict(&outcome.best);
+        return outcome;
+    }
+    let mut best: Option<Outcome> = None;
+    for attempt in 0..=config.robust.retries as u64 {
+        let seed = seed.wrapping_add(attempt);
+        // Every second retry starts one pyramid level finer.
+        let levels = prepared.levels.len() - (attempt % 2) as usize;
+        if attempt > 0 {
+            tracing::info!("not found; searching again from seed {seed} on {levels} pyramid levels");
+        }
+        let mut problem = prepared.problem_on(config, levels);
+        problem.observer = observer;
+        let mut outcome = ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress);
+        outcome.verdict = prepared.verdict(&outcome.best);
+        let found = outcome.verdict.found;
+        best = Some(better(best, outcome));
+        if found {
+            break;
+        }
+    }
+    best.expect("at least one search")
+}
+
+/// The higher-scoring of two searches' outcomes (of equal scores the earlier), counting
+/// the searches and evaluations of both.
+fn better(earlier: Option<Outcome>, later: Outcome) -> Outcome {
+    match earlier {
+        None => later,
+        Some(e) => {
+            let (evaluations, searches) = (e.evaluations + later.evaluations, e.searches + later.searches);
+            let kept = if e.fitness.score >= later.fitness.score {
+                e
+            } else {
+                later
+            };
+            Outcome {
+                evaluations,
+                searches,
+                ..kept
+            }
+        }
+    }
 }
 
 /// The `--json` report: exactly the fields of the estimate contract.

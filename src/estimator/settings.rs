@@ -198,6 +198,9 @@ pub struct RobustSettings {
     /// brightness at the model's points plus their correlation with the photo's
     /// brightness. 0 leaves them out (and makes every result's verdict "not found").
     pub texture_weight: f64,
+    /// One-shot searches run again, each from the next seed, while the verdict finds
+    /// nothing; the best-scoring result of all is kept. 0 searches once.
+    pub retries: usize,
 }
 
 impl RobustSettings {
@@ -258,6 +261,7 @@ impl Default for RobustSettings {
             min_extent_px: 24.0,
             stereo_weight: 0.5,
             texture_weight: 3.0,
+            retries: 1,
         }
     }
 }

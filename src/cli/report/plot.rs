@@ -84,12 +84,12 @@ pub struct Panel<'a> {
 #[derive(Debug, thiserror::Error)]
 pub enum PlotError {
     /// Encoding or writing the PNG failed (e.g. the directory does not exist).
-    #[error("cannot write plot {}: {source}", .path.display())]
+    #[error("cannot write plot {}: {reason}", .path.display())]
     Write {
         /// The PNG file.
         path: PathBuf,
         /// The encoder's or the system's reason.
-        source: image::ImageError,
+        reason: image::ImageError,
     },
     /// The embedded font could not be loaded.
     #[error("cannot load the chart font")]
@@ -164,9 +164,9 @@ pub fn histogram<'a>(title: &'a str, x_label: &'a str, values: &[f64], bins: usi
 /// Writes `img` as a PNG to `path`.
 pub fn save(img: &RgbImage, path: &Path) -> Result<(), PlotError> {
     img.save_with_format(path, image::ImageFormat::Png)
-        .map_err(|source| PlotError::Write {
+        .map_err(|reason| PlotError::Write {
             path: path.to_path_buf(),
-            source,
+            reason,
         })
 }
 

@@ -237,9 +237,11 @@ pub struct Outcome {
     pub best: PoseSize,
     /// Its fitness at full resolution.
     pub fitness: Fitness,
-    /// Generations run.
+    /// Generations run per search.
     pub generations: usize,
-    /// Candidates evaluated, on any pyramid level.
+    /// Searches run: more than one when a robust search found nothing and ran again.
+    pub searches: usize,
+    /// Candidates evaluated, on any pyramid level, in all searches.
     pub evaluations: usize,
     /// The best individual at each of the [`snapshot_generations`].
     pub snapshots: Vec<Snapshot>,

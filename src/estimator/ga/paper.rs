@@ -107,6 +107,7 @@ pub fn run(
         best: problem.bounds.decode(&genes(&pop[best])),
         fitness: fit[best],
         generations,
+        searches: 1,
         evaluations,
         snapshots,
         verdict: Default::default(),

@@ -397,6 +397,7 @@ impl<'p, 'a> Search<'p, 'a> {
             best,
             fitness,
             generations: self.generations,
+            searches: 1,
             evaluations: self.evaluations + used,
             snapshots: self.snapshots,
             verdict: Default::default(),
