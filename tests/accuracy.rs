@@ -362,7 +362,14 @@ fn a_search_that_finds_nothing_runs_again_finer() {
         first.verdict
     );
     let finer = search(&absent, 2, 0, 8);
-    let both = search(&absent, 3, 1, 7);
+    // Both searches, watched: an observer sees their generations one after another.
+    let seen = std::sync::Mutex::new(Vec::new());
+    let observer = |g: &photopose::estimator::ga::observe::Generation| seen.lock().unwrap().push(g.generation);
+    let mut config = r.config.clone();
+    config.robust.retries = 1;
+    let prepared = oneshot::Prepared::new(&absent, &r.images, &config).expect("calibrated");
+    let both = oneshot::search_observed(&prepared, &config, 300, 7, &mut |_| {}, Some(&observer));
+    assert_eq!(seen.into_inner().unwrap(), (1..=600).collect::<Vec<_>>());
     assert_eq!(
         (both.searches, both.evaluations),
         (2, first.evaluations + finer.evaluations)

@@ -149,7 +149,8 @@ fn logged_search(
         }
     };
     let outcome = oneshot::search_observed(prepared, config, generations, seed, progress, Some(&observer));
-    log.result(&outcome.best, outcome.fitness.f, outcome.generations)?;
+    // After every search: the last generation of the last one.
+    log.result(&outcome.best, outcome.fitness.f, outcome.generations * outcome.searches)?;
     finish(&rec);
     println!("wrote {}", path.display());
     Ok(outcome)

@@ -188,8 +188,18 @@ pub fn search_observed(
         if attempt > 0 {
             tracing::info!("not found; searching again from seed {seed} on {levels} pyramid levels");
         }
+        // An observer sees the searches one after another: generations count on.
+        let offset = attempt as usize * generations;
+        let shifted = observer.map(|o| {
+            move |g: &ga::observe::Generation| {
+                o(&ga::observe::Generation {
+                    generation: g.generation + offset,
+                    ..*g
+                })
+            }
+        });
         let mut problem = prepared.problem_on(config, levels);
-        problem.observer = observer;
+        problem.observer = shifted.as_ref().map(|o| o as ga::observe::Observer<'_>);
         let mut outcome = ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress);
         outcome.verdict = prepared.verdict(&outcome.best);
         let found = outcome.verdict.found;
