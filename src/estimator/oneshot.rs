@@ -183,8 +183,8 @@ pub fn search_observed(
     let mut best: Option<Outcome> = None;
     for attempt in 0..=config.robust.retries as u64 {
         let seed = seed.wrapping_add(attempt);
-        // Every second retry starts one pyramid level finer.
-        let levels = prepared.levels.len() - (attempt % 2) as usize;
+        // The first retry, and every second one after it, starts one pyramid level finer.
+        let levels = (prepared.levels.len() - (attempt % 2) as usize).max(1);
         if attempt > 0 {
             tracing::info!("not found; searching again from seed {seed} on {levels} pyramid levels");
         }
