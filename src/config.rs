@@ -259,6 +259,17 @@ mod tests {
             .join(name)
     }
 
+    /// A file that leaves keys out gets the shipped defaults for them.
+    #[test]
+    fn keys_left_out_take_the_shipped_defaults() {
+        let builtin = Config::load(None).unwrap();
+        let empty = Config::parse("", Path::new("empty.toml"), None).unwrap();
+        assert_eq!(empty.search, builtin.search);
+        assert_eq!(empty.ga, builtin.ga);
+        assert_eq!(empty.robust, builtin.robust);
+        assert_eq!(empty.tracking, builtin.tracking);
+    }
+
     #[test]
     fn built_in_default_equals_shipped_file() {
         let builtin = Config::load(None).unwrap();
