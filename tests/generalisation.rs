@@ -33,9 +33,9 @@ const CARDS: [(&str, [i64; 4]); 4] = [
     ("rocket.jpg", [150, 60, 340, 300]),
 ];
 
-/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-02: 34 of 40; the
+/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-02: 35 of 40; the
 /// floor is 2 scenes below (a guard against regressions, not the target).
-const SUCCESS_FLOOR: f64 = 0.79;
+const SUCCESS_FLOOR: f64 = 0.82;
 
 /// One random scene's parameters and its rendering.
 struct Drawn {
@@ -142,6 +142,12 @@ fn draw(i: u64) -> Drawn {
     }
 }
 
+/// Whether scene `i` runs: all, or those listed in `GEN_SCENES` (`GEN_SCENES=8,11`;
+/// then the floor is not asserted).
+fn chosen(i: u64) -> bool {
+    std::env::var("GEN_SCENES").map_or(true, |l| l.split(',').any(|s| s.trim() == i.to_string()))
+}
+
 /// Errors of an estimate: position mm, worst relative size, rotation degrees.
 fn errors(d: &Drawn, best: &PoseSize) -> [f64; 3] {
     let size = best.size_mm(d.model.l_p, d.model.b_p);
@@ -158,12 +164,12 @@ fn errors(d: &Drawn, best: &PoseSize) -> [f64; 3] {
 fn generalisation_scenes_are_estimated_or_flagged() {
     let start = std::time::Instant::now();
     println!(
-        "\n{:<32} {:>3} {:>5} {:>5} {:>5} | {:>7} {:>6} {:>6} | {:>5} {:>5} {:>5} found",
+        "\n{:<32} {:>3} {:>5} {:>5} {:>5} | {:>7} {:>6} {:>6} | {:>5} {:>5} {:>5} found | score truth",
         "scene", "res", "noise", "tilt°", "px", "pos mm", "size%", "rot°", "conf", "stereo", "struct"
     );
-    let (mut ok, mut false_found, mut found, mut wrong) = (0, Vec::new(), 0, 0);
-    let n = 40;
-    for i in 0..n {
+    let (mut ok, mut false_found, mut found, mut wrong, mut outranks) = (0, Vec::new(), 0, 0, 0);
+    let n = (0..40).filter(|&i| chosen(i)).count();
+    for i in (0..40).filter(|&i| chosen(i)) {
         let d = draw(i);
         let out = oneshot::run(
             &d.model,
@@ -175,6 +181,10 @@ fn generalisation_scenes_are_estimated_or_flagged() {
         )
         .unwrap();
         let [pos, size, rot] = errors(&d, &out.best);
+        let truth = PoseSize::from_pose(&d.hand_from_model, d.size_mm, d.model.l_p, d.model.b_p);
+        let score = |p: &PoseSize| oneshot::score_at(&d.model, &d.images, &d.config, p).unwrap().score;
+        let (at_result, at_truth) = (score(&out.best), score(&truth));
+        outranks += (at_truth > at_result) as usize;
         let v = &out.verdict;
         let good = pos <= 10.0 && size <= 0.05 && rot <= 5.0;
         let far = pos > 20.0 || rot > 10.0;
@@ -185,7 +195,7 @@ fn generalisation_scenes_are_estimated_or_flagged() {
             false_found.push(d.name.clone());
         }
         println!(
-            "{:<32} {:>3} {:>5.1} {:>5.1} {:>5.0} | {pos:>7.1} {:>6.1} {rot:>6.1} | {:>5.2} {:>5.2} {:>5.2} {}",
+            "{:<32} {:>3} {:>5.1} {:>5.1} {:>5.0} | {pos:>7.1} {:>6.1} {rot:>6.1} | {:>5.2} {:>5.2} {:>5.2} {:<5} | {at_result:>5.2} {at_truth:>5.2}",
             d.name,
             if d.fhd { "FHD" } else { "HD" },
             d.noise,
@@ -201,15 +211,46 @@ fn generalisation_scenes_are_estimated_or_flagged() {
     let share = ok as f64 / n as f64;
     println!(
         "within 10 mm, 5 %, 5°: {ok} of {n} ({:.0} %; target 95 % clean, 85 % noisy: not reached); \
-         reported found: {found}; more than 20 mm or 10° off: {wrong}, of them reported found: {}; {:.0} s",
+         reported found: {found}; more than 20 mm or 10° off: {wrong}, of them reported found: {}; \
+         the truth outranks the result on {outranks}; {:.0} s",
         share * 100.0,
         false_found.len(),
         start.elapsed().as_secs_f64()
     );
     assert!(false_found.is_empty(), "wrong poses reported found: {false_found:?}");
     assert!(
-        share >= SUCCESS_FLOOR,
+        share >= SUCCESS_FLOOR || n < 40,
         "{ok} of {n} within 10 mm, 5 %, 5°: below the floor of {:.0} %",
         SUCCESS_FLOOR * 100.0
     );
+}
+
+/// The later retries' scan also tries tilted placements (`Problem::scan_tilt`): a cup
+/// card tilted 36° and 135 px across (random scene 38), which the facing scan on the
+/// half resolution misses (none of its regions within 40 mm of the truth), is its best
+/// region then.
+#[test]
+fn the_tilted_scan_sees_a_card_the_facing_scan_misses() {
+    use photopose::estimator::ga::scan;
+    use photopose::estimator::oneshot::Prepared;
+    let d = draw(38);
+    let mut config = d.config.clone();
+    // The finer retries' levels: the scan runs on the half resolution.
+    config.robust.pyramid_levels = 2;
+    let prepared = Prepared::new(&d.model, &d.images, &config).expect("calibrated");
+    let truth = d.hand_from_model.translation.vector;
+    let distances = |tilt_deg: f64| -> Vec<f64> {
+        let mut problem = prepared.problem(&config);
+        problem.scan_tilt = tilt_deg.to_radians();
+        let regions = scan::seeds(&problem, 40).regions;
+        regions
+            .iter()
+            .map(|g| (problem.bounds.decode(g).position - truth).norm())
+            .collect()
+    };
+    let facing = distances(0.0);
+    let nearest = facing.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(nearest > 40.0, "a facing region came {nearest:.0} mm near");
+    let tilted = distances(35.0);
+    assert!(tilted[0] < 20.0, "the best tilted region is {:.0} mm off", tilted[0]);
 }

@@ -104,6 +104,7 @@ impl Prepared {
                 &self.scorer.left_from_hand,
                 p,
                 true,
+                self.scorer.partial_view,
             )
         };
         let at = texture(best);
@@ -134,9 +135,14 @@ pub fn scorer_for(model: &PhotoModel, config: &Config) -> Scorer {
         scorer.min_extent_px = r.min_extent_px;
         scorer.stereo_weight = r.stereo_weight;
         scorer.rank_by_sum = true;
+        scorer.partial_view = true;
     }
     scorer
 }
+
+/// The tilt of the tilted placements of the later retries' scans: a card tilted 20–45°
+/// is foreshortened by 6–30 % along one side.
+const RETRY_SCAN_TILT_DEG: f64 = 35.0;
 
 /// Runs the configured GA for `generations` generations from `seed`.
 pub fn run(
@@ -200,6 +206,10 @@ pub fn search_observed(
         });
         let mut problem = prepared.problem_on(config, levels);
         problem.observer = shifted.as_ref().map(|o| o as ga::observe::Observer<'_>);
+        // From the second retry on, the scan also tries tilted placements.
+        if attempt >= 2 {
+            problem.scan_tilt = RETRY_SCAN_TILT_DEG.to_radians();
+        }
         let mut outcome = ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress);
         outcome.verdict = prepared.verdict(&outcome.best);
         let found = outcome.verdict.found;

@@ -92,6 +92,17 @@ impl PoseSize {
         }
     }
 
+    /// The model turned half round about its own normal: the same place, plane and
+    /// size, upside down.
+    pub fn half_turned(&self) -> Self {
+        let turned = self.hand_from_model() * Isometry3::rotation(Vector3::z() * std::f64::consts::PI);
+        Self {
+            alpha: self.alpha,
+            k: self.k,
+            ..Self::from_pose(&turned, [1.0, 1.0], 1.0, 1.0)
+        }
+    }
+
     /// The left camera's line of sight to this pose's centre, in the hand frame
     /// (`left_from_hand` the hand–eye transform); its length is the centre's distance.
     pub fn sight(&self, left_from_hand: &Isometry3<f64>) -> Vector3<f64> {
@@ -189,6 +200,20 @@ mod tests {
             ..p
         };
         assert!((big.rotation().angle() - std::f64::consts::PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn half_turned_is_upside_down_in_the_same_place_and_plane() {
+        let iso = Isometry3::new(Vector3::new(10.0, -20.0, 600.0), Vector3::new(0.3, -0.2, 2.5));
+        let p = PoseSize::from_pose(&iso, [80.0, 120.0], 200.0, 240.0);
+        let q = p.half_turned();
+        assert!((q.position - p.position).norm() < 1e-9);
+        assert_eq!((q.alpha, q.k), (p.alpha, p.k));
+        let (rp, rq) = (p.rotation(), q.rotation());
+        // The same normal, the model's x and y axes reversed.
+        assert!((rq * Vector3::z() - rp * Vector3::z()).norm() < 1e-9);
+        assert!((rq * Vector3::x() + rp * Vector3::x()).norm() < 1e-9);
+        assert!((rotation_error_deg(&q.half_turned().rotation(), &rp)).abs() < 1e-6);
     }
 
     #[test]

@@ -464,14 +464,21 @@ pub struct StreamTracker {
 /// estimate is, the tracking sequences got worse: after whole-frame searches on
 /// motion-blurred frames of a red card on a red wall, a pose 200–590 mm off was called
 /// tracking.
-const TRACKER_RANKS_BY_SUM: bool = false;
+///
+/// Its points off the image count as mismatches ([`Scorer::partial_view`] off): its
+/// frames are read in regions around the prediction, and a point beyond a region, on
+/// the image but not read, must not go free.
+fn as_tracker_scores(scorer: &mut Scorer) {
+    scorer.rank_by_sum = false;
+    scorer.partial_view = false;
+}
 
 impl StreamTracker {
     /// A tracker of `model` with the configuration's tracking settings and seed, waiting
     /// for the first frame to acquire the object on.
     pub fn new(model: PhotoModel, config: Config) -> Self {
         let mut scorer = scorer_for(&model, &config);
-        scorer.rank_by_sum = TRACKER_RANKS_BY_SUM;
+        as_tracker_scores(&mut scorer);
         let bounds = Bounds::new(&config.search, &model, config.ga.mode == Mode::Robust);
         let points = [PointSet::from_model(
             &model,
@@ -545,7 +552,7 @@ impl StreamTracker {
                 let mut images = frame.to_images().ok_or_else(|| FrameError::incomplete(frame))?;
                 images.apply_gains(self.exposure.gains());
                 let mut prepared = Prepared::new(&self.model, &images, &self.config)?;
-                prepared.scorer.rank_by_sum = TRACKER_RANKS_BY_SUM;
+                as_tracker_scores(&mut prepared.scorer);
                 Ready::Whole(Box::new(prepared), images.left)
             }
         };

@@ -24,11 +24,11 @@ const MEDIANS: Errors = Errors {
 };
 
 /// Floors of the success shares, asserted against regressions: the shares measured on
-/// 2026-12-02 after searches that find nothing ran again (clean 32 of 32, hard 18 of 22)
-/// less two scenes. The search with other random streams has moved by one or two scenes
+/// 2026-12-02 on the 56 scenes, with points off the image judged by the visible part
+/// (clean 33 of 33, hard 19 of 23) less two scenes. The search with other random streams has moved by one or two scenes
 /// either way. The targets above are reported, not asserted, until they are reached.
 const CLEAN_FLOOR: f64 = 0.93;
-const HARD_FLOOR: f64 = 0.72;
+const HARD_FLOOR: f64 = 0.73;
 /// A pose this far off must never be reported found: position mm, rotation degrees.
 const WRONG_MM: f64 = 20.0;
 const WRONG_DEG: f64 = 10.0;

@@ -63,6 +63,7 @@ fn clean() -> Vec<Case> {
         scene("cup-brushes-left", CUP, BRUSHES, [-250., 60., 480.], [0., 20., -10.], 80.),
         scene("hopper-room-bottom", HOPPER, ROOM, [100., 185., 500.], [20., 0., 0.], 70.),
         scene("astro-cups-corner", ASTRO, CUPS, [280., -185., 520.], [-10., -25., 170.], 80.),
+        scene("cup-dogs-cut-top", CUP, DOGS, [40., -264., 600.], [10., 0., 5.], 150.),
         // Aspect changes and hand-eye transforms.
         scene("cup-boats-aspect", CUP, BOATS, [20., -30., 450.], [0., 8., 0.], 60.).stretch(1.4),
         scene("bowl-dogs-aspect", BOWL, DOGS, [-40., 50., 750.], [0., -30., -40.], 170.).stretch(0.7),
@@ -130,6 +131,7 @@ fn hard() -> Vec<Case> {
             .blur(Blur::Defocus(1.0)),
         scene("astro-boats-small-noise", ASTRO, BOATS, [-60., 40., 1000.], [10., -15., 0.], 75.).noise(5.0),
         scene("astro-dogs-fhd-edge-noise", ASTRO, DOGS, [250., -180., 560.], [-20., -20., 0.], 65.).fhd().noise(10.0),
+        scene("astro-creek-cut-bottom-noise", ASTRO, CREEK, [-60., 294., 650.], [-15., 10., 0.], 120.).noise(6.0),
         scene("rocket-room-everything", ROCKET, ROOM, [-30., 30., 700.], [30., -28., 20.], 150.).hand_eye().noise(6.0)
             .blur(Blur::Motion(1.5, [1.0, 1.0])).wb([1.1, 1.0, 0.9]).light(0.8).occluded(0.15, GREY),
         scene("cup-marigold-large-occl", CUP, MARIGOLD, [0., 10., 450.], [32., 32., 0.], 230.).occluded(0.25, ORANGE),

@@ -225,6 +225,17 @@ pub struct Counts {
     /// achromatic: the same class): both views confirm the same surface point, as they
     /// do where depth and tilt are right.
     pub confirmed: u32,
+    /// Inner points that land on the image (not off it or behind the camera), left and
+    /// right.
+    pub inner_seen: [u32; 2],
+    /// Outer points that land on the image, left and right.
+    pub outer_seen: [u32; 2],
+}
+
+/// Whether a texel is on the image (not the outside ring).
+#[inline(always)]
+fn on_image(t: u32) -> bool {
+    (t & 0xff) != OUTSIDE as u32
 }
 
 /// Circular distance of two hues (0–180); callers check that codes are chromatic.
@@ -249,34 +260,66 @@ fn same_colour(l: u32, r: u32, tol: &Tolerances) -> bool {
     (hue_gap(lc, rc) <= tol.stereo_hue as u32) & (ls.abs_diff(rs) <= tol.stereo_sat as u32)
 }
 
-/// `(close, background)` in the left image alone (the left-only scan); the right
-/// image and projection are not read.
-pub fn count_left(points: &PointSet, img: &LookupImage, p: &Projection, tol: &Tolerances) -> (u32, u32) {
-    let c = dispatch::<false>(points, [img, img], [p, p], tol);
-    (c.close[0], c.background[0])
+/// [`Counts`] in the left image alone (the left-only scan): the right image and
+/// projection are not read, their counts and `confirmed` are 0. With `seen`, the points
+/// on the image are counted too (otherwise those counts are 0).
+pub fn count_left(points: &PointSet, img: &LookupImage, p: &Projection, tol: &Tolerances, seen: bool) -> Counts {
+    if seen {
+        dispatch::<false, true>(points, [img, img], [p, p], tol)
+    } else {
+        dispatch::<false, false>(points, [img, img], [p, p], tol)
+    }
 }
 
-/// [`Counts`] of one candidate, projected by `projections` into `images` (left, right).
-pub fn count(points: &PointSet, images: [&LookupImage; 2], projections: [&Projection; 2], tol: &Tolerances) -> Counts {
-    dispatch::<true>(points, images, projections, tol)
+/// [`Counts`] of one candidate, projected by `projections` into `images` (left, right);
+/// with `seen`, the points on each image are counted too (otherwise those counts are 0).
+pub fn count(
+    points: &PointSet,
+    images: [&LookupImage; 2],
+    projections: [&Projection; 2],
+    tol: &Tolerances,
+    seen: bool,
+) -> Counts {
+    if seen {
+        dispatch::<true, true>(points, images, projections, tol)
+    } else {
+        dispatch::<true, false>(points, images, projections, tol)
+    }
+}
+
+/// Whether every point within `reach` (photo pixels from the box centre, each way) of
+/// the model lands on `img` by projection `p`, at least `margin` texels inside its
+/// edge: the projections of the reach's four corners do (the model is flat, and lens
+/// distortion bends its edges by less than the margin).
+pub fn wholly_on(img: &LookupImage, p: &Projection, [rx, ry]: [f32; 2], margin: f32) -> bool {
+    let (lo, hi_u, hi_v) = (
+        1.0 + margin,
+        (img.width - 2) as f32 - margin,
+        (img.height - 2) as f32 - margin,
+    );
+    [(-rx, -ry), (rx, -ry), (-rx, ry), (rx, ry)].into_iter().all(|(x, y)| {
+        let (u, v) = pixel(p, x, y);
+        (lo..=hi_u).contains(&u) && (lo..=hi_v).contains(&v)
+    })
 }
 
 avx2_multiversion! {
     /// [`count_chunks`], with AVX2 where the CPU has it.
-    fn dispatch<const BOTH: bool>(
+    fn dispatch<const BOTH: bool, const SEEN: bool>(
         points: &PointSet,
         images: [&LookupImage; 2],
         projections: [&Projection; 2],
         tol: &Tolerances,
     ) -> Counts {
-        count_chunks::<BOTH>(points, images, projections, tol)
+        count_chunks::<BOTH, SEEN>(points, images, projections, tol)
     }
 }
 
 /// The counts; with `BOTH` false only the left image is read and counted (the right
-/// counts and `confirmed` are then left at zero).
+/// counts and `confirmed` are then left at zero); with `SEEN` false the points on the
+/// images are not counted.
 #[inline(always)]
-fn count_chunks<const BOTH: bool>(
+fn count_chunks<const BOTH: bool, const SEEN: bool>(
     points: &PointSet,
     [left, right]: [&LookupImage; 2],
     [pl, pr]: [&Projection; 2],
@@ -297,6 +340,10 @@ fn count_chunks<const BOTH: bool>(
                 let ml = chromatic_match(l, code, sat, tol);
                 c.close[0] = c.close[0].wrapping_add(ml as u32);
                 c.close[1] = c.close[1].wrapping_add(chromatic_match(r, code, sat, tol) as u32);
+                if SEEN {
+                    c.inner_seen[0] = c.inner_seen[0].wrapping_add(on_image(l) as u32);
+                    c.inner_seen[1] = c.inner_seen[1].wrapping_add(on_image(r) as u32);
+                }
                 c.confirmed = c
                     .confirmed
                     .wrapping_add((ml & ((r & 0xff) < 180) & same_colour(l, r, tol)) as u32);
@@ -304,6 +351,9 @@ fn count_chunks<const BOTH: bool>(
         } else {
             for (&l, (&code, &sat)) in tl.iter().zip(model) {
                 c.close[0] = c.close[0].wrapping_add(chromatic_match(l, code, sat, tol) as u32);
+                if SEEN {
+                    c.inner_seen[0] = c.inner_seen[0].wrapping_add(on_image(l) as u32);
+                }
             }
         }
     }
@@ -319,21 +369,37 @@ fn count_chunks<const BOTH: bool>(
                 c.close[0] = c.close[0].wrapping_add(ml as u32);
                 c.close[1] = c.close[1].wrapping_add(mr as u32);
                 c.confirmed = c.confirmed.wrapping_add((ml & mr) as u32);
+                if SEEN {
+                    c.inner_seen[0] = c.inner_seen[0].wrapping_add(on_image(l) as u32);
+                    c.inner_seen[1] = c.inner_seen[1].wrapping_add(on_image(r) as u32);
+                }
             }
         } else {
             for (&l, &code) in tl.iter().zip(codes) {
                 c.close[0] = c.close[0].wrapping_add(((l & 0xff) == code as u32) as u32);
+                if SEEN {
+                    c.inner_seen[0] = c.inner_seen[0].wrapping_add(on_image(l) as u32);
+                }
             }
         }
     }
     let n_outer = points.outer_x.len();
     let mut target = [0u32; 2];
+    let seen = |t: &[u32]| count_true(t.iter().map(|&t| on_image(t)));
     for start in (0..n_outer).step_by(CHUNK) {
         let r = start..(start + CHUNK).min(n_outer);
         let (xs, ys) = (&points.outer_x[r.clone()], &points.outer_y[r]);
-        target[0] = target[0].wrapping_add(tol.outer.targets(a.read(left, pl, xs, ys)));
+        let tl = a.read(left, pl, xs, ys);
+        target[0] = target[0].wrapping_add(tol.outer.targets(tl));
+        if SEEN {
+            c.outer_seen[0] = c.outer_seen[0].wrapping_add(seen(tl));
+        }
         if BOTH {
-            target[1] = target[1].wrapping_add(tol.outer.targets(b.read(right, pr, xs, ys)));
+            let tr = b.read(right, pr, xs, ys);
+            target[1] = target[1].wrapping_add(tol.outer.targets(tr));
+            if SEEN {
+                c.outer_seen[1] = c.outer_seen[1].wrapping_add(seen(tr));
+            }
         }
     }
     c.background = [

@@ -43,6 +43,39 @@ pub struct Fitness {
     pub score: f64,
 }
 
+/// The share of a model's inner points that must land on the image for the part off
+/// it to cost nothing (robust mode, see [`view_weight`]).
+pub const FULL_VIEW: f64 = 0.75;
+
+/// How much a score read on the `share` of a model's points that land on the image
+/// counts: fully from [`FULL_VIEW`] up, less in proportion below. A card cut by the
+/// image's border is judged on its visible part; a model mostly off the image, where
+/// a few points could match by chance, is not.
+pub fn view_weight(share: f64) -> f64 {
+    (share / FULL_VIEW).clamp(0.0, 1.0)
+}
+
+/// Texels inside the image's edge within which the corners of a model's reach must
+/// land for all its points to count as on the image without counting them.
+const VIEW_MARGIN_PX: f32 = 3.0;
+
+/// Every point of `points` counted as on both images.
+fn all_seen(points: &PointSet, counts: &mut kernel::Counts) {
+    counts.inner_seen = [points.inner_x.len() as u32; 2];
+    counts.outer_seen = [points.outer_x.len() as u32; 2];
+}
+
+/// How far `model`'s points reach from its box centre along x and y, photo pixels.
+fn reach(model: &PhotoModel) -> [f32; 2] {
+    let xy = model
+        .inner
+        .iter()
+        .map(|p| [p.x, p.y])
+        .chain(model.outer.iter().copied());
+    let [x, y] = xy.fold([0.0f64; 2], |[mx, my], [x, y]| [mx.max(x.abs()), my.max(y.abs())]);
+    [x as f32, y as f32]
+}
+
 /// Left–right colour agreement tolerances (tighter than the model match: both views
 /// see the same surface through the same kind of camera).
 const STEREO_HUE_TOLERANCE: u8 = 5;
@@ -158,8 +191,16 @@ pub struct Scorer {
     /// each eye, and `g` punished that more than a model shrunk onto the visible part;
     /// the stereo terms check the depth instead.
     pub rank_by_sum: bool,
+    /// Score each image on the points that land on it, weighted by [`view_weight`]
+    /// (robust mode), instead of counting points off the image as mismatches (the
+    /// paper). A card cut by the image's border then scores as its visible part does,
+    /// and a model shrunk away from the border gains nothing.
+    pub partial_view: bool,
     /// Model frame size `L_P`, `B_P` in photo pixels.
     pub box_px: [f64; 2],
+    /// How far the model's points (inner and outer) reach from the box centre along x
+    /// and y, photo pixels.
+    pub reach_px: [f32; 2],
     /// `CL_T_H`: hand coordinates → left-camera coordinates (mm), the hand–eye calibration.
     pub left_from_hand: Isometry3<f64>,
     /// `H̄_in` rounded to the nearest OpenCV hue (image hues are integers).
@@ -188,7 +229,9 @@ impl Scorer {
             min_extent_px: 0.0,
             stereo_weight: 0.0,
             rank_by_sum: false,
+            partial_view: false,
             box_px: [model.l_p, model.b_p],
+            reach_px: reach(model),
             left_from_hand,
             mean_hue: (model.mean_hue.round() as u32 % 180) as u8,
             center_code: model.center_code(),
@@ -254,8 +297,12 @@ impl Scorer {
         let Some(pl) = self.placement(&level.left, &left_from_model, c, &level.rig.left, level.scale) else {
             return 0.0;
         };
-        let (close, background) = kernel::count_left(points, &level.left, &pl, &self.tolerances());
-        self.image_score(points, close, background)
+        let seen = self.partial_view && !kernel::wholly_on(&level.left, &pl, self.reach_px, VIEW_MARGIN_PX);
+        let mut counts = kernel::count_left(points, &level.left, &pl, &self.tolerances(), seen);
+        if !seen {
+            all_seen(points, &mut counts);
+        }
+        self.image_score(points, &counts, 0)
     }
 
     /// Eq. 18 for one candidate on one pyramid level, and its search score.
@@ -263,9 +310,17 @@ impl Scorer {
         let Some([pl, pr]) = self.placements(level, c) else {
             return Fitness::default();
         };
-        let counts = kernel::count(points, [&level.left, &level.right], [&pl, &pr], &self.tolerances());
-        let fl = self.image_score(points, counts.close[0], counts.background[0]);
-        let fr = self.image_score(points, counts.close[1], counts.background[1]);
+        let images = [&level.left, &level.right];
+        let seen = self.partial_view
+            && !images
+                .iter()
+                .zip([&pl, &pr])
+                .all(|(img, p)| kernel::wholly_on(img, p, self.reach_px, VIEW_MARGIN_PX));
+        let mut counts = kernel::count(points, images, [&pl, &pr], &self.tolerances(), seen);
+        if !seen {
+            all_seen(points, &mut counts);
+        }
+        let [fl, fr] = [0, 1].map(|eye| self.image_score(points, &counts, eye));
         let g = if fl == 0.0 || fr == 0.0 {
             0.0
         } else {
@@ -273,13 +328,27 @@ impl Scorer {
             (-(d * d) / (2.0 * self.params.sigma * self.params.sigma)).exp()
         };
         let f = (fl + fr) / 2.0 * (1.0 + g);
-        let confirmed = counts.confirmed as f64 / points.inner_x.len().max(1) as f64;
+        let confirmed = self.confirmed_share(points, &counts);
         Fitness {
             f,
             left: fl,
             right: fr,
             score: if self.rank_by_sum { fl + fr } else { f } + self.stereo_weight * confirmed,
         }
+    }
+
+    /// The share of inner points both views confirm; with [`Scorer::partial_view`], of
+    /// those both images show, times [`view_weight`].
+    fn confirmed_share(&self, points: &PointSet, counts: &kernel::Counts) -> f64 {
+        let n = points.inner_x.len().max(1) as f64;
+        if !self.partial_view {
+            return counts.confirmed as f64 / n;
+        }
+        let seen = counts.inner_seen[0].min(counts.inner_seen[1]) as f64;
+        if seen == 0.0 {
+            return 0.0;
+        }
+        view_weight(seen / n) * counts.confirmed as f64 / seen
     }
 
     fn tolerances(&self) -> kernel::Tolerances {
@@ -299,17 +368,25 @@ impl Scorer {
         }
     }
 
-    /// `F_L` or `F_R` (eqs. 12–16) from an image's counts: the point scores over `M`,
-    /// the score of a perfect match.
-    fn image_score(&self, points: &PointSet, close: u32, background: u32) -> f64 {
+    /// `F_L` or `F_R` (eqs. 12–16) from the counts of image `eye` (0 left, 1 right): the
+    /// point scores over `M`, the score of a perfect match. With
+    /// [`Scorer::partial_view`], over the points on the image only, times
+    /// [`view_weight`] of their share.
+    fn image_score(&self, points: &PointSet, counts: &kernel::Counts, eye: usize) -> f64 {
         let pr = &self.params;
-        let (n_inner, n_outer) = (points.inner_x.len() as f64, points.outer_x.len() as f64);
+        let [mut n_inner, mut n_outer] = [&points.inner_x, &points.outer_x].map(|v| v.len() as f64);
+        let mut weight = 1.0;
+        if self.partial_view {
+            let seen = counts.inner_seen[eye] as f64;
+            weight = view_weight(seen / n_inner.max(1.0));
+            (n_inner, n_outer) = (seen, counts.outer_seen[eye] as f64);
+        }
         let m = pr.e1 * n_inner + pr.e3 * n_outer;
-        if m <= 0.0 {
+        if m <= 0.0 || weight == 0.0 {
             return 0.0;
         }
-        let (close, background) = (close as f64, background as f64);
-        (pr.e1 * close + pr.e2 * (n_inner - close) + pr.e3 * background + pr.e4 * (n_outer - background)) / m
+        let (close, background) = (counts.close[eye] as f64, counts.background[eye] as f64);
+        weight * (pr.e1 * close + pr.e2 * (n_inner - close) + pr.e3 * background + pr.e4 * (n_outer - background)) / m
     }
 
     /// Projected pixel positions of all inner and outer points in the left and right
@@ -562,6 +639,52 @@ mod tests {
             ..candidate()
         };
         assert_eq!(score(&s, &pts, &lv, &back), Fitness::default());
+    }
+
+    #[test]
+    fn partial_view_scores_the_part_on_the_image() {
+        // A red patch at the image's right border; the model's right column and its right
+        // outer point fall off the image.
+        let lv = level(|x, y| if x >= 17 && (8..=11).contains(&y) { 0 } else { GRAY });
+        let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
+        let cut = PoseSize {
+            position: Vector3::new(9.5, 0.0, 100.0),
+            ..candidate()
+        };
+        let mut s = scorer(OuterRule::ColorClass);
+        let literal = score(&s, &pts, &lv, &cut);
+        // Off the image: 2 inner mismatches (−0.5) and 1 outer "target" (−1.9).
+        let expected = (2.0 * 2.0 - 2.0 * 0.5 + 3.0 * 0.5 - 1.9) / 10.0;
+        assert!((literal.left - expected).abs() < 1e-12, "{literal:?}");
+        s.partial_view = true;
+        let partial = score(&s, &pts, &lv, &cut);
+        // The 2 inner and 3 outer points on the image match perfectly; half the inner
+        // points are seen, so the score counts 0.5 / FULL_VIEW of it.
+        assert!((partial.left - 0.5 / FULL_VIEW).abs() < 1e-12, "{partial:?}");
+        assert_eq!(partial.left, partial.right);
+        // A model wholly on the image scores as before.
+        let whole = level(|x, y| {
+            if (8..=11).contains(&x) && (8..=11).contains(&y) {
+                0
+            } else {
+                GRAY
+            }
+        });
+        assert_eq!(score(&s, &pts, &whole, &candidate()).left, 1.0);
+        // Wholly off it: nothing.
+        let far = PoseSize {
+            position: Vector3::new(500.0, 0.0, 100.0),
+            ..candidate()
+        };
+        assert_eq!(score(&s, &pts, &lv, &far).left, 0.0);
+    }
+
+    #[test]
+    fn view_weight_is_full_from_three_quarters_in_view() {
+        assert_eq!(view_weight(1.0), 1.0);
+        assert_eq!(view_weight(FULL_VIEW), 1.0);
+        assert!((view_weight(0.5) - 0.5 / FULL_VIEW).abs() < 1e-12);
+        assert_eq!(view_weight(0.0), 0.0);
     }
 
     #[test]

@@ -130,6 +130,10 @@ pub struct Problem<'a> {
     pub texture: Option<TextureTerm<'a>>,
     /// Told each generation's best individual, when set (see [`observe`]).
     pub observer: Option<observe::Observer<'a>>,
+    /// The acquisition scan tries each placement tilted by this angle (radians) about
+    /// the model's x and about its y axis instead of facing the camera; 0: facing (see
+    /// [`scan`]).
+    pub scan_tilt: f64,
 }
 
 impl<'a> Problem<'a> {
@@ -149,6 +153,7 @@ impl<'a> Problem<'a> {
             workers: Workers::new(threads),
             texture: None,
             observer: None,
+            scan_tilt: 0.0,
         }
     }
 
@@ -197,6 +202,7 @@ impl<'a> Problem<'a> {
             &self.scorer.left_from_hand,
             c,
             false,
+            self.scorer.partial_view,
         )
     }
 

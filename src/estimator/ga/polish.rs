@@ -146,9 +146,14 @@ fn side_by_side(
 /// How many of the coarse results are refined on level 0.
 const FINALISTS: usize = 6;
 
-/// `start` after one-sided resizes and CMA-ES on `level`.
+/// `start` after one-sided resizes and CMA-ES on `level`. The start is also tried
+/// upside down: the scan keeps one roll per place, and a photo turned half round
+/// shows the same colours there.
 fn coarse(problem: &Problem, start: Genes, level: usize, evaluations: usize, rng: &mut impl Rng) -> (Genes, Fitness) {
-    let start = best_of(problem, level, edge_variants(problem, &start));
+    let flipped = problem.bounds.encode(&problem.bounds.decode(&start).half_turned());
+    let mut candidates = edge_variants(problem, &start);
+    candidates.extend(edge_variants(problem, &flipped));
+    let start = best_of(problem, level, candidates);
     super::cmaes::maximise(problem, level, start, 3.0 * SIGMA, evaluations, rng)
 }
 

@@ -1,7 +1,8 @@
 //! Acquisition by exhaustive scan on the coarsest pyramid level: the model, facing the
-//! left camera, is slid over the left image at every few pixels, apparent sizes and
-//! in-plane rotations (`F_L` only); the best distinct placements then get their depth
-//! from a scan along the line of sight scored on both images. The results seed the GA.
+//! left camera (or, where [`Problem::scan_tilt`] is set, tilted about its own axes), is
+//! slid over the left image at every few pixels, apparent sizes and in-plane
+//! rotations (`F_L` only); the best distinct placements then get their depth from a
+//! scan along the line of sight scored on both images. The results seed the GA.
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -35,7 +36,8 @@ struct Placement {
     ray: Vector3<f64>,
     /// Model length over depth (`L / z`), i.e. apparent size over the focal length.
     l_over_z: f64,
-    /// The in-plane rotation (about the line of sight).
+    /// The model's rotation in the left camera's frame: an in-plane rotation (about the
+    /// line of sight), possibly tilted about the model's own axes.
     roll: UnitQuaternion<f64>,
     /// Index of its apparent size, `0..SIZES`.
     size: usize,
@@ -67,10 +69,41 @@ pub struct Scanned {
 /// The scan of the coarsest level: up to `n` seeds and every distinct region.
 pub fn seeds(problem: &Problem, n: usize) -> Scanned {
     let scan = Scan::new(problem);
-    let placements = scan.placements();
-    let order = scan.best_placements(&placements);
-    let kept = distinct(&placements, &order);
+    let grid = scan.placements();
+    let order = scan.best_placements(&grid);
+    let kept = distinct(&grid, &order);
     scan.depth_scan(&kept, n)
+}
+
+/// Every placement of the scan, by index: each pixel at each apparent size and
+/// orientation, without storing them all (millions, with tilts).
+struct Grid {
+    /// Pixel `(u, v)` and its line of sight.
+    pixels: Vec<(f64, f64, Vector3<f64>)>,
+    /// Apparent sizes (`L / z`), smallest first.
+    sizes: Vec<f64>,
+    orientations: Vec<UnitQuaternion<f64>>,
+}
+
+impl Grid {
+    fn len(&self) -> usize {
+        self.pixels.len() * self.sizes.len() * self.orientations.len()
+    }
+
+    /// Placement `i`: pixels vary fastest, then orientations, then sizes.
+    fn get(&self, i: usize) -> Placement {
+        let (np, no) = (self.pixels.len(), self.orientations.len());
+        let (u, v, ray) = self.pixels[i % np];
+        let size = i / (np * no);
+        Placement {
+            u,
+            v,
+            ray,
+            l_over_z: self.sizes[size],
+            roll: self.orientations[(i / np) % no],
+            size,
+        }
+    }
 }
 
 /// The scan's view of the problem: the coarsest level and its points, and the fixed
@@ -94,7 +127,16 @@ impl Scan<'_, '_> {
             Some(t) => {
                 let eye = t.pyramid.eyes(problem.levels.len() - 1)[0];
                 let left_from_hand = &problem.scorer.left_from_hand;
-                f + 2.0 * t.weight * texture::structure_in(points, &lv.rig.left, eye, left_from_hand, c)
+                f + 2.0
+                    * t.weight
+                    * texture::structure_in(
+                        points,
+                        &lv.rig.left,
+                        eye,
+                        left_from_hand,
+                        c,
+                        problem.scorer.partial_view,
+                    )
             }
             None => f,
         }
@@ -133,8 +175,8 @@ impl<'p, 'a> Scan<'p, 'a> {
 
     /// Every placement: the left image's pixels every [`STEP_PX`], at [`SIZES`] apparent
     /// sizes from the smallest allowed extent to a large share of the image, and
-    /// [`ROLLS`] in-plane rotations.
-    fn placements(&self) -> Vec<Placement> {
+    /// [`ROLLS`] in-plane rotations, facing or tilted (see [`Scan::orientations`]).
+    fn placements(&self) -> Grid {
         let (lv, problem) = (self.level, self.problem);
         let (w, h) = (lv.rig.width as f64, lv.rig.height as f64);
         let fx_full = lv.rig.left.fx / lv.scale;
@@ -150,38 +192,47 @@ impl<'p, 'a> Scan<'p, 'a> {
             }
             v += STEP_PX;
         }
-        let mut placements = Vec::new();
-        for si in 0..SIZES {
-            let l_over_z = smallest * (largest / smallest).powf(si as f64 / (SIZES - 1) as f64);
-            for ri in 0..ROLLS {
-                let roll =
-                    UnitQuaternion::from_scaled_axis(Vector3::z() * (std::f64::consts::TAU * ri as f64 / ROLLS as f64));
-                placements.extend(pixels.iter().map(|&(u, v, ray)| Placement {
-                    u,
-                    v,
-                    ray,
-                    l_over_z,
-                    roll,
-                    size: si,
-                }));
+        Grid {
+            pixels,
+            sizes: (0..SIZES)
+                .map(|si| smallest * (largest / smallest).powf(si as f64 / (SIZES - 1) as f64))
+                .collect(),
+            orientations: self.orientations(),
+        }
+    }
+
+    /// The [`ROLLS`] in-plane rotations; where [`Problem::scan_tilt`] is set, each tilted
+    /// by it about the model's x and about its y axis instead (a card tilted far from
+    /// facing looks shorter along one side, and a facing model of either size misses
+    /// it; the searches that scan tilted have had a facing scan before).
+    fn orientations(&self) -> Vec<UnitQuaternion<f64>> {
+        let tilt = self.problem.scan_tilt;
+        let mut out = Vec::new();
+        for ri in 0..ROLLS {
+            let roll =
+                UnitQuaternion::from_scaled_axis(Vector3::z() * (std::f64::consts::TAU * ri as f64 / ROLLS as f64));
+            if tilt == 0.0 {
+                out.push(roll);
+            } else {
+                out.extend([Vector3::x(), Vector3::y()].map(|a| roll * UnitQuaternion::from_scaled_axis(a * tilt)));
             }
         }
-        placements
+        out
     }
 
     /// Indices of the most promising placements, best first by `F_L` at the reference
     /// depth: a cheap pass with one point in [`SPARSE`], then every point for the
     /// [`RESCORE`] best of it.
-    fn best_placements(&self, placements: &[Placement]) -> Vec<usize> {
+    fn best_placements(&self, grid: &Grid) -> Vec<usize> {
         let problem = self.problem;
         let sparse = self.points.every(SPARSE);
-        let mut rough = vec![0.0; placements.len()];
-        problem.par_fill(placements, &mut rough, |pl| {
+        let mut order: Vec<usize> = (0..grid.len()).collect();
+        let mut rough = vec![0.0; grid.len()];
+        problem.par_fill(&order, &mut rough, |&i| {
             problem
                 .scorer
-                .evaluate_left(&sparse, self.level, &self.candidate(pl, self.z_ref))
+                .evaluate_left(&sparse, self.level, &self.candidate(&grid.get(i), self.z_ref))
         });
-        let mut order: Vec<usize> = (0..placements.len()).collect();
         let promising = RESCORE.min(order.len());
         if promising < order.len() {
             order.select_nth_unstable_by(promising, |&a, &b| rough[b].total_cmp(&rough[a]));
@@ -189,9 +240,9 @@ impl<'p, 'a> Scan<'p, 'a> {
         }
         let mut exact = vec![0.0; order.len()];
         problem.par_fill(&order, &mut exact, |&i| {
-            self.left_score(self.points, &self.candidate(&placements[i], self.z_ref))
+            self.left_score(self.points, &self.candidate(&grid.get(i), self.z_ref))
         });
-        let mut scores = vec![f64::NEG_INFINITY; placements.len()];
+        let mut scores = vec![f64::NEG_INFINITY; grid.len()];
         for (&i, &f) in order.iter().zip(&exact) {
             scores[i] = f;
         }
@@ -234,11 +285,11 @@ impl<'p, 'a> Scan<'p, 'a> {
 /// placements inside a target's uniform areas score high on the coarse grid of rolls
 /// and sizes, where a target-sized one is slightly off; without the shares they crowd out
 /// every larger size.
-fn distinct(placements: &[Placement], order: &[usize]) -> Vec<Placement> {
+fn distinct(grid: &Grid, order: &[usize]) -> Vec<Placement> {
     let mut kept: Vec<Placement> = Vec::with_capacity(KEEP);
     let mut per_size = [0usize; SIZES];
     for &i in order {
-        let p = placements[i];
+        let p = grid.get(i);
         if per_size[p.size] == KEEP / SIZES {
             continue;
         }

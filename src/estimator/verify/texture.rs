@@ -10,7 +10,7 @@ use image::RgbImage;
 use nalgebra::Isometry3;
 
 use crate::camera::{Intrinsics, StereoRig};
-use crate::estimator::fitness::{PointProjector, PointSet};
+use crate::estimator::fitness::{view_weight, PointProjector, PointSet};
 use crate::estimator::pose::PoseSize;
 
 /// One eye's brightness (HSV value, the maximum of R, G and B), row-major, and its
@@ -117,7 +117,8 @@ fn box_mean(px: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
 }
 
 /// The texture terms of one candidate, each a normalised correlation in `[-1, 1]`
-/// scaled by the share of points seen by both cameras; 0 where a signal is flat.
+/// over the points seen by both cameras, weighted by their share (see
+/// [`seen_weight`]); 0 where a signal is flat.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Texture {
     /// Left against right brightness detail at the same model points.
@@ -202,6 +203,7 @@ pub fn score(
     left_from_hand: &Isometry3<f64>,
     c: &PoseSize,
     denoised: bool,
+    partial_view: bool,
 ) -> Texture {
     let left_from_model = left_from_hand * c.hand_from_model();
     let left = PointProjector::new(&rig.left, &left_from_model, c);
@@ -221,7 +223,7 @@ pub fn score(
         model_left.add(m as f32, a);
         model_right.add(m as f32, b);
     }
-    let seen = model_left.n / points.inner_v.len().max(1) as f64;
+    let seen = seen_weight(model_left.n / points.inner_v.len().max(1) as f64, partial_view);
     Texture {
         stereo: stereo.corrected(denoised) * seen,
         structure: (model_left.value() + model_right.value()) / 2.0 * seen,
@@ -274,6 +276,7 @@ pub fn structure_in(
     eye: &Brightness,
     left_from_hand: &Isometry3<f64>,
     c: &PoseSize,
+    partial_view: bool,
 ) -> f64 {
     let project = PointProjector::new(cam, &(left_from_hand * c.hand_from_model()), c);
     let mut ncc = Ncc::default();
@@ -283,5 +286,18 @@ pub fn structure_in(
             ncc.add(m as f32, a);
         }
     }
-    ncc.value() * ncc.n / points.inner_v.len().max(1) as f64
+    ncc.value() * seen_weight(ncc.n / points.inner_v.len().max(1) as f64, partial_view)
+}
+
+/// How much a correlation over the `share` of a model's points seen counts: by
+/// [`view_weight`] with `partial_view` (robust mode's rule, [`Scorer::partial_view`]),
+/// else in proportion to the share.
+///
+/// [`Scorer::partial_view`]: crate::estimator::fitness::Scorer::partial_view
+fn seen_weight(share: f64, partial_view: bool) -> f64 {
+    if partial_view {
+        view_weight(share)
+    } else {
+        share
+    }
 }

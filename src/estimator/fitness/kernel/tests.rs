@@ -148,8 +148,14 @@ fn reference(pts: &PointSet, images: [&LookupImage; 2], projections: [&Projectio
             mr
         };
         c.confirmed += (ml && same) as u32;
+        for (seen, t) in c.inner_seen.iter_mut().zip([l, r]) {
+            *seen += ((t & 0xff) as u8 != OUTSIDE) as u32;
+        }
     }
     for e in 0..2 {
+        c.outer_seen[e] = (0..pts.outer_x.len())
+            .filter(|&i| (texel_at(pts, images[e], projections[e], i, true) & 0xff) as u8 != OUTSIDE)
+            .count() as u32;
         c.background[e] = (0..pts.outer_x.len())
             .filter(|&i| !reference_target(texel_at(pts, images[e], projections[e], i, true), &tol.outer))
             .count() as u32;
@@ -195,7 +201,9 @@ fn fast_path_counts_exactly_like_the_scalar_reference() {
     let mut rng = StdRng::seed_from_u64(5);
     let (left, right) = (random_colours(&mut rng), random_colours(&mut rng));
     let (cam, pts) = (camera(), points(&mut rng));
-    let (mut seen, mut confirmed) = (0, 0);
+    let (mut seen, mut confirmed, mut cut, mut wholly) = (0, 0, 0, 0);
+    let extent = |a: &[f32], b: &[f32]| a.iter().chain(b).fold(0.0f32, |m, v| m.max(v.abs()));
+    let reach = [extent(&pts.inner_x, &pts.outer_x), extent(&pts.inner_y, &pts.outer_y)];
     // The three outer tests: chromatic centre, achromatic centre, the paper's raw hue.
     let outers = [
         TOL.outer,
@@ -217,15 +225,45 @@ fn fast_path_counts_exactly_like_the_scalar_reference() {
         // The right camera sees the placement shifted by a baseline.
         let pl = projection(&cam, (0, 0), [&ax, &ay, &t]);
         let pr = projection(&cam, (0, 0), [&ax, &ay, &(t + Vector3::new(-120.0, 0.0, 0.0))]);
-        let fast = count(&pts, [&left, &right], [&pl, &pr], &tol);
+        let fast = count(&pts, [&left, &right], [&pl, &pr], &tol, true);
         assert_eq!(fast, reference(&pts, [&left, &right], [&pl, &pr], &tol));
-        assert_eq!(count_chunks::<true>(&pts, [&left, &right], [&pl, &pr], &tol), fast);
-        let (close, background) = count_left(&pts, &left, &pl, &tol);
-        assert_eq!((close, background), (fast.close[0], fast.background[0]));
+        assert_eq!(
+            count_chunks::<true, true>(&pts, [&left, &right], [&pl, &pr], &tol),
+            fast
+        );
+        let unseen = count(&pts, [&left, &right], [&pl, &pr], &tol, false);
+        assert_eq!(
+            unseen,
+            Counts {
+                inner_seen: [0; 2],
+                outer_seen: [0; 2],
+                ..fast
+            }
+        );
+        let only_left = count_left(&pts, &left, &pl, &tol, true);
+        assert_eq!(
+            only_left,
+            Counts {
+                close: [fast.close[0], 0],
+                background: [fast.background[0], 0],
+                confirmed: 0,
+                inner_seen: [fast.inner_seen[0], 0],
+                outer_seen: [fast.outer_seen[0], 0],
+            }
+        );
         seen += (fast.close[0] > 0) as u32;
         confirmed += fast.confirmed;
+        cut += (fast.inner_seen[0] > 0 && (fast.inner_seen[0] as usize) < pts.inner_x.len()) as u32;
+        // A model whose reach lands wholly on the image has every point on it.
+        if wholly_on(&left, &pl, reach, 1.0) {
+            let n = [pts.inner_x.len(), pts.outer_x.len()].map(|n| n as u32);
+            assert_eq!([fast.inner_seen[0], fast.outer_seen[0]], n);
+            wholly += 1;
+        }
     }
+    assert!(wholly > 20, "some placements lie wholly on the image: {wholly}");
     assert!(seen > 100, "most placements see part of the image: {seen}");
+    assert!(cut > 20, "some placements are cut by the image's border: {cut}");
     assert!(confirmed > 50, "some random matches are confirmed: {confirmed}");
     // Identical views confirm exactly the left-image matches.
     let p = projection(
@@ -233,7 +271,7 @@ fn fast_path_counts_exactly_like_the_scalar_reference() {
         (0, 0),
         [&Vector3::x(), &Vector3::y(), &Vector3::new(0.0, 0.0, 300.0)],
     );
-    let same = count(&pts, [&left, &left], [&p, &p], &TOL);
+    let same = count(&pts, [&left, &left], [&p, &p], &TOL, false);
     assert_eq!(same.confirmed, same.close[0]);
     assert!(same.confirmed > 0);
 }
