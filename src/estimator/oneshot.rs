@@ -206,7 +206,7 @@ pub fn search_observed(
         });
         let mut problem = prepared.problem_on(config, levels);
         problem.observer = shifted.as_ref().map(|o| o as ga::observe::Observer<'_>);
-        // From the second retry on, the scan also tries tilted placements.
+        // From the second retry on, the scan tries tilted placements instead of facing.
         if attempt >= 2 {
             problem.scan_tilt = RETRY_SCAN_TILT_DEG.to_radians();
         }

@@ -297,7 +297,7 @@ impl Scorer {
         let Some(pl) = self.placement(&level.left, &left_from_model, c, &level.rig.left, level.scale) else {
             return 0.0;
         };
-        let seen = self.partial_view && !kernel::wholly_on(&level.left, &pl, self.reach_px, VIEW_MARGIN_PX);
+        let seen = self.counts_on_image(&[(&level.left, &pl)]);
         let mut counts = kernel::count_left(points, &level.left, &pl, &self.tolerances(), seen);
         if !seen {
             all_seen(points, &mut counts);
@@ -310,13 +310,14 @@ impl Scorer {
         let Some([pl, pr]) = self.placements(level, c) else {
             return Fitness::default();
         };
-        let images = [&level.left, &level.right];
-        let seen = self.partial_view
-            && !images
-                .iter()
-                .zip([&pl, &pr])
-                .all(|(img, p)| kernel::wholly_on(img, p, self.reach_px, VIEW_MARGIN_PX));
-        let mut counts = kernel::count(points, images, [&pl, &pr], &self.tolerances(), seen);
+        let seen = self.counts_on_image(&[(&level.left, &pl), (&level.right, &pr)]);
+        let mut counts = kernel::count(
+            points,
+            [&level.left, &level.right],
+            [&pl, &pr],
+            &self.tolerances(),
+            seen,
+        );
         if !seen {
             all_seen(points, &mut counts);
         }
@@ -335,6 +336,16 @@ impl Scorer {
             right: fr,
             score: if self.rank_by_sum { fl + fr } else { f } + self.stereo_weight * confirmed,
         }
+    }
+
+    /// Whether the kernel must count the points that land on each of `views` (image
+    /// and projection): with [`Scorer::partial_view`], unless the model's reach lands
+    /// wholly on every image (then all of them do).
+    fn counts_on_image(&self, views: &[(&LookupImage, &Projection)]) -> bool {
+        self.partial_view
+            && !views
+                .iter()
+                .all(|(img, p)| kernel::wholly_on(img, p, self.reach_px, VIEW_MARGIN_PX))
     }
 
     /// The share of inner points both views confirm; with [`Scorer::partial_view`], of

@@ -242,12 +242,9 @@ impl<'p, 'a> Scan<'p, 'a> {
         problem.par_fill(&order, &mut exact, |&i| {
             self.left_score(self.points, &self.candidate(&grid.get(i), self.z_ref))
         });
-        let mut scores = vec![f64::NEG_INFINITY; grid.len()];
-        for (&i, &f) in order.iter().zip(&exact) {
-            scores[i] = f;
-        }
-        order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]).then(a.cmp(&b)));
-        order
+        let mut ranked: Vec<(usize, f64)> = order.into_iter().zip(exact).collect();
+        ranked.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        ranked.into_iter().map(|(i, _)| i).collect()
     }
 
     /// The `n` best candidates of a scan along each placement's line of sight over the
