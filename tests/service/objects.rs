@@ -54,7 +54,12 @@ fn two_objects_are_tracked_together_each_against_its_own_truth() {
     // card is acquired and relocated in the background while the rocket is tracked; a
     // relocation the verdict doubts can leave it `searching` for a while (96–100 %
     // measured), so its floor is lower.
-    for (name, floor) in [("rocket", 0.95), ("hopper", 0.85)] {
+    //
+    // The hopper painting's large even areas pin its depth weakly while it is tracked:
+    // now and then its estimate slides along the line of sight by up to ~20 mm over a
+    // few frames before a whole-frame step puts it back (p95 7.3–10.7 mm over runs, the
+    // median 2.0–2.6 mm), so its p95 bound is 15 mm; the rocket card's p95 is 2.6–3.1 mm.
+    for (name, floor, p95) in [("rocket", 0.95, 10.0), ("hopper", 0.85, 15.0)] {
         let poses: Vec<PoseMsg> = w.sets.iter().filter_map(|s| s.get(name).copied()).collect();
         // After the object's own acquisition (its first tracking pose).
         let start = poses
@@ -74,8 +79,9 @@ fn two_objects_are_tracked_together_each_against_its_own_truth() {
             errors.median(),
             errors.percentile(95.0)
         );
+        assert!(errors.median() <= 4.0, "{name}: median {:.1} mm", errors.median());
         assert!(
-            errors.percentile(95.0) <= 10.0,
+            errors.percentile(95.0) <= p95,
             "{name}: p95 {:.1} mm",
             errors.percentile(95.0)
         );

@@ -12,6 +12,7 @@ use nalgebra::Isometry3;
 use crate::camera::{Intrinsics, StereoRig};
 use crate::estimator::fitness::{view_weight, PointProjector, PointSet};
 use crate::estimator::pose::PoseSize;
+use crate::vision::simd::avx2_multiversion;
 
 /// One eye's brightness (HSV value, the maximum of R, G and B), row-major, and its
 /// detail: the brightness minus its 5 × 5 mean, which keeps only the fine texture.
@@ -19,8 +20,9 @@ use crate::estimator::pose::PoseSize;
 pub struct Brightness {
     width: usize,
     height: usize,
-    px: Vec<f32>,
-    detail: Vec<f32>,
+    /// Each pixel's brightness and detail, side by side: a sample reads both from the
+    /// same cache lines.
+    px: Vec<[f32; 2]>,
     /// Variance of the sensor noise in the detail, estimated from the image's
     /// flattest blocks.
     noise_var: f32,
@@ -43,8 +45,7 @@ impl Brightness {
         Self {
             width,
             height,
-            px,
-            detail,
+            px: px.into_iter().zip(detail).map(|(a, d)| [a, d]).collect(),
             noise_var,
         }
     }
@@ -63,13 +64,14 @@ impl Brightness {
         let (fx, fy) = (u - x0 as f32, v - y0 as f32);
         let i = y0 * self.width + x0;
         let w = self.width;
-        let at = |p: &[f32]| {
-            let top = p[i] + fx * (p[i + 1] - p[i]);
-            let bottom = p[i + w] + fx * (p[i + w + 1] - p[i + w]);
+        let p = &self.px;
+        let at = |k: usize| {
+            let top = p[i][k] + fx * (p[i + 1][k] - p[i][k]);
+            let bottom = p[i + w][k] + fx * (p[i + w + 1][k] - p[i + w][k]);
             top + fy * (bottom - top)
         };
         let w2 = ((1.0 - fx).powi(2) + fx * fx) * ((1.0 - fy).powi(2) + fy * fy);
-        Some((at(&self.px), at(&self.detail), self.noise_var * w2))
+        Some((at(0), at(1), self.noise_var * w2))
     }
 }
 
@@ -210,23 +212,44 @@ pub fn score(
     let right = PointProjector::new(&rig.right, &(rig.right_from_left * left_from_model), c);
     let inside = EdgeMargin::new(points, &left);
     let (mut stereo, mut model_left, mut model_right) = (Ncc::default(), Ncc::default(), Ncc::default());
-    for ((&x, &y), &m) in points.inner_x.iter().zip(&points.inner_y).zip(&points.inner_v) {
-        let ((ul, vl), (ur, vr)) = (left.pixel(x, y), right.pixel(x, y));
-        let (Some((a, da, na)), Some((b, db, nb))) = (eyes[0].sample(ul, vl), eyes[1].sample(ur, vr)) else {
-            continue;
-        };
-        if inside.holds(x, y) {
-            stereo.add(da, db);
-            stereo.noise_a += na as f64;
-            stereo.noise_b += nb as f64;
+    let mut px = [[0.0f32; BATCH]; 4];
+    let batches = points.inner_x.chunks(BATCH).zip(points.inner_y.chunks(BATCH));
+    for ((xs, ys), ms) in batches.zip(points.inner_v.chunks(BATCH)) {
+        let [ul, vl, ur, vr] = &mut px;
+        project_batch(&left, xs, ys, ul, vl);
+        project_batch(&right, xs, ys, ur, vr);
+        for (i, ((&x, &y), &m)) in xs.iter().zip(ys).zip(ms).enumerate() {
+            let (Some((a, da, na)), Some((b, db, nb))) = (eyes[0].sample(ul[i], vl[i]), eyes[1].sample(ur[i], vr[i]))
+            else {
+                continue;
+            };
+            if inside.holds(x, y) {
+                stereo.add(da, db);
+                stereo.noise_a += na as f64;
+                stereo.noise_b += nb as f64;
+            }
+            model_left.add(m as f32, a);
+            model_right.add(m as f32, b);
         }
-        model_left.add(m as f32, a);
-        model_right.add(m as f32, b);
     }
     let seen = seen_weight(model_left.n / points.inner_v.len().max(1) as f64, partial_view);
     Texture {
         stereo: stereo.corrected(denoised) * seen,
         structure: (model_left.value() + model_right.value()) / 2.0 * seen,
+    }
+}
+
+/// Model points projected at a time: their pixels are computed in a loop the compiler
+/// vectorises, then sampled one by one.
+const BATCH: usize = 256;
+
+avx2_multiversion! {
+    /// The pixels of model points `(xs[i], ys[i])` through `project`, into `us` and `vs`
+    /// (the first [`BATCH`] of them).
+    fn project_batch(project: &PointProjector, xs: &[f32], ys: &[f32], us: &mut [f32; BATCH], vs: &mut [f32; BATCH]) {
+        for (((&x, &y), u), v) in xs.iter().zip(ys).zip(us.iter_mut()).zip(vs.iter_mut()) {
+            (*u, *v) = project.pixel(x, y);
+        }
     }
 }
 
@@ -280,10 +303,14 @@ pub fn structure_in(
 ) -> f64 {
     let project = PointProjector::new(cam, &(left_from_hand * c.hand_from_model()), c);
     let mut ncc = Ncc::default();
-    for ((&x, &y), &m) in points.inner_x.iter().zip(&points.inner_y).zip(&points.inner_v) {
-        let (u, v) = project.pixel(x, y);
-        if let Some((a, _, _)) = eye.sample(u, v) {
-            ncc.add(m as f32, a);
+    let [mut us, mut vs] = [[0.0f32; BATCH]; 2];
+    let batches = points.inner_x.chunks(BATCH).zip(points.inner_y.chunks(BATCH));
+    for ((xs, ys), ms) in batches.zip(points.inner_v.chunks(BATCH)) {
+        project_batch(&project, xs, ys, &mut us, &mut vs);
+        for ((&u, &v), &m) in us.iter().zip(&vs).zip(ms) {
+            if let Some((a, _, _)) = eye.sample(u, v) {
+                ncc.add(m as f32, a);
+            }
         }
     }
     ncc.value() * seen_weight(ncc.n / points.inner_v.len().max(1) as f64, partial_view)
