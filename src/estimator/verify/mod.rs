@@ -5,6 +5,7 @@
 pub mod texture;
 
 use nalgebra::{Isometry3, Vector3};
+use rayon::prelude::*;
 
 use crate::camera::StereoRig;
 use crate::estimator::fitness::PointSet;
@@ -21,9 +22,13 @@ impl BrightnessPyramid {
     /// The pyramid of `images` (level 0) and its `coarse` levels 1, 2, … (the colour
     /// pyramid's, [`crate::vision::frame::coarse_levels`]).
     pub fn new(images: &StereoImages, coarse: &[StereoImages]) -> Self {
-        let eyes = |im: &StereoImages| [Brightness::of(&im.left), Brightness::of(&im.right)];
+        let eyes = |im: &StereoImages| {
+            let (left, right) = rayon::join(|| Brightness::of(&im.left), || Brightness::of(&im.right));
+            [left, right]
+        };
+        let all: Vec<&StereoImages> = std::iter::once(images).chain(coarse).collect();
         Self {
-            levels: std::iter::once(images).chain(coarse).map(eyes).collect(),
+            levels: all.into_par_iter().map(eyes).collect(),
         }
     }
 
