@@ -8,6 +8,7 @@ use anyhow::{bail, Context};
 use crate::config::Config;
 use crate::estimator::model::PhotoModel;
 use crate::estimator::oneshot::{self, Prepared, Report};
+use crate::estimator::settings::Mode;
 use crate::vision::frame::StereoImages;
 
 /// Estimate pose and size from one stereo frame (one-shot GA).
@@ -72,7 +73,7 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
         (None, None) => String::new(),
     };
     let prepared = Prepared::new(&model, &images, &config).with_context(|| format!("frame {frame}"))?;
-    let progress = &mut |g: usize| bar.set_position(g as u64);
+    let progress = &mut search_progress(&bar, &config);
     let outcome = match &args.rerun {
         #[cfg(feature = "rerun")]
         Some(path) => logged_search(path, &model, &images, &prepared, &config, generations, seed, progress)?,
@@ -126,6 +127,25 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
 }
 
 /// [`oneshot::search`] recorded generation by generation into the Rerun file `path`.
+/// The progress callback of a search on `bar`: the generation count of each search, and
+/// which search it is when the verdict sends the robust mode searching again (each
+/// starts again from generation 0).
+fn search_progress<'b>(bar: &'b indicatif::ProgressBar, config: &Config) -> impl FnMut(usize) + 'b {
+    let searches = match config.ga.mode {
+        Mode::Robust => config.robust.retries + 1,
+        Mode::Paper => 1,
+    };
+    let (mut search, mut last) = (1, 0);
+    move |g: usize| {
+        if g < last {
+            search += 1;
+            bar.set_message(format!("search {search} of up to {searches}: generations"));
+        }
+        last = g;
+        bar.set_position(g as u64);
+    }
+}
+
 #[cfg(feature = "rerun")]
 #[allow(clippy::too_many_arguments)]
 fn logged_search(
@@ -154,4 +174,25 @@ fn logged_search(
     finish(&rec);
     println!("wrote {}", path.display());
     Ok(outcome)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_progress_bar_names_each_retry() {
+        let bar = indicatif::ProgressBar::hidden();
+        bar.set_message("generations");
+        let config = Config::load(None).expect("defaults");
+        let mut progress = search_progress(&bar, &config);
+        (0..=1000).for_each(&mut progress);
+        assert_eq!(bar.message(), "generations");
+        assert_eq!(bar.position(), 1000);
+        progress(3);
+        assert_eq!(bar.message(), "search 2 of up to 4: generations");
+        assert_eq!(bar.position(), 3);
+        (4..=1000).chain([0]).for_each(&mut progress);
+        assert_eq!(bar.message(), "search 3 of up to 4: generations");
+    }
 }
