@@ -126,7 +126,6 @@ pub fn run(args: &EstimateArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// [`oneshot::search`] recorded generation by generation into the Rerun file `path`.
 /// The progress callback of a search on `bar`: the generation count of each search, and
 /// which search it is when the verdict sends the robust mode searching again (each
 /// starts again from generation 0).
@@ -146,6 +145,7 @@ fn search_progress<'b>(bar: &'b indicatif::ProgressBar, config: &Config) -> impl
     }
 }
 
+/// [`oneshot::search`] recorded generation by generation into the Rerun file `path`.
 #[cfg(feature = "rerun")]
 #[allow(clippy::too_many_arguments)]
 fn logged_search(

@@ -58,7 +58,7 @@ fn two_objects_are_tracked_together_each_against_its_own_truth() {
     // The hopper painting's large even areas pin its depth weakly while it is tracked:
     // now and then its estimate slides along the line of sight by up to ~20 mm over a
     // few frames before a whole-frame step puts it back (p95 7.3–10.7 mm over runs, the
-    // median 2.0–2.6 mm), so its p95 bound is 15 mm; the rocket card's p95 is 2.6–3.1 mm.
+    // median 1.9–2.6 mm), so its p95 bound is 15 mm; the rocket card's p95 is 2.6–3.1 mm.
     for (name, floor, p95) in [("rocket", 0.95, 10.0), ("hopper", 0.85, 15.0)] {
         let poses: Vec<PoseMsg> = w.sets.iter().filter_map(|s| s.get(name).copied()).collect();
         // After the object's own acquisition (its first tracking pose).

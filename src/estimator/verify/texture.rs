@@ -213,8 +213,7 @@ pub fn score(
     let inside = EdgeMargin::new(points, &left);
     let (mut stereo, mut model_left, mut model_right) = (Ncc::default(), Ncc::default(), Ncc::default());
     let mut px = [[0.0f32; BATCH]; 4];
-    let batches = points.inner_x.chunks(BATCH).zip(points.inner_y.chunks(BATCH));
-    for ((xs, ys), ms) in batches.zip(points.inner_v.chunks(BATCH)) {
+    for (xs, ys, ms) in batches(points) {
         let [ul, vl, ur, vr] = &mut px;
         project_batch(&left, xs, ys, ul, vl);
         project_batch(&right, xs, ys, ur, vr);
@@ -242,6 +241,12 @@ pub fn score(
 /// Model points projected at a time: their pixels are computed in a loop the compiler
 /// vectorises, then sampled one by one.
 const BATCH: usize = 256;
+
+/// The inner points of `points` in runs of [`BATCH`]: x, y and the photo's brightness.
+fn batches(points: &PointSet) -> impl Iterator<Item = (&[f32], &[f32], &[u8])> {
+    let xy = points.inner_x.chunks(BATCH).zip(points.inner_y.chunks(BATCH));
+    xy.zip(points.inner_v.chunks(BATCH)).map(|((xs, ys), ms)| (xs, ys, ms))
+}
 
 avx2_multiversion! {
     /// The pixels of model points `(xs[i], ys[i])` through `project`, into `us` and `vs`
@@ -304,8 +309,7 @@ pub fn structure_in(
     let project = PointProjector::new(cam, &(left_from_hand * c.hand_from_model()), c);
     let mut ncc = Ncc::default();
     let [mut us, mut vs] = [[0.0f32; BATCH]; 2];
-    let batches = points.inner_x.chunks(BATCH).zip(points.inner_y.chunks(BATCH));
-    for ((xs, ys), ms) in batches.zip(points.inner_v.chunks(BATCH)) {
+    for (xs, ys, ms) in batches(points) {
         project_batch(&project, xs, ys, &mut us, &mut vs);
         for ((&u, &v), &m) in us.iter().zip(&vs).zip(ms) {
             if let Some((a, _, _)) = eye.sample(u, v) {
