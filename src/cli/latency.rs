@@ -54,6 +54,9 @@ pub fn run(args: &LatencyArgs) -> Result<()> {
         return compare_transport(args);
     }
     let observed = observe(args.seconds)?;
+    if observed.poses.is_empty() {
+        return Err(anyhow!(nothing_heard(observed.frames.len(), args.seconds)));
+    }
     let report = observed.report();
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
@@ -70,6 +73,17 @@ pub fn run(args: &LatencyArgs) -> Result<()> {
         plot::save(&observed.plot()?, path)?;
     }
     Ok(())
+}
+
+/// Why there is nothing to report after `seconds` in which `frames` frames and no pose
+/// arrived: which process is missing (the figures would all be undefined).
+fn nothing_heard(frames: usize, seconds: f64) -> String {
+    match frames {
+        0 => {
+            format!("no frames and no poses in {seconds} s: start `photopose capture` and `photopose estimator` first")
+        }
+        n => format!("{n} frames but no poses in {seconds} s: is `photopose estimator` running?"),
+    }
 }
 
 /// A pose as the tool saw it.

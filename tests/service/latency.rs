@@ -57,6 +57,47 @@ fn latency_measures_the_running_pipeline() {
     );
 }
 
+/// The one stderr line of a `photopose latency` run that failed.
+fn latency_error(seconds: &str) -> String {
+    let out = photopose()
+        .args(["latency", "--seconds", seconds])
+        .output()
+        .expect("photopose binary");
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        out.stdout.is_empty(),
+        "no report expected: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "one line expected: {err}");
+    err.trim_end().to_string()
+}
+
+/// Nothing to measure is an error that names the missing process, not a report of
+/// undefined figures (it printed NaN for every percentile and exited 0).
+#[test]
+fn latency_without_a_pipeline_names_the_missing_process() {
+    let _serial = serial();
+    assert_eq!(
+        latency_error("0.5"),
+        "error: no frames and no poses in 0.5 s: start `photopose capture` and `photopose estimator` first"
+    );
+    let _capture = spawn(&["capture"]);
+    std::thread::sleep(Duration::from_secs(1));
+    let err = latency_error("1.5");
+    let frames: usize = err
+        .strip_prefix("error: ")
+        .and_then(|e| e.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("a frame count first: {err}"));
+    assert!(frames > 30, "{err}");
+    assert!(
+        err.ends_with(" frames but no poses in 1.5 s: is `photopose estimator` running?"),
+        "{err}"
+    );
+}
+
 #[test]
 fn compare_transport_times_both_transports_on_the_same_frames() {
     let _serial = serial();
