@@ -55,7 +55,7 @@ fn fixture() -> &'static Fixture {
         let mut rng = StdRng::seed_from_u64(1);
         let genes = (0..INDIVIDUALS).map(|_| view_sample(&one, &mut rng)).collect();
         let sbs = images.to_sbs().into_raw();
-        let yuyv = common::yuyv_from_rgb(&sbs, images.eye_size().0 as usize);
+        let yuyv = photopose::vision::color::yuyv_from_rgb(&sbs, images.eye_size().0 as usize);
         Fixture {
             config,
             images,

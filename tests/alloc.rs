@@ -18,7 +18,8 @@ use photopose::render::{Renderer, SceneSpec};
 use photopose::vision::lookup::SbsBytes;
 use photopose::vision::PixelFormat;
 
-use common::{data, repo, yuyv_from_rgb};
+use common::{data, repo};
+use photopose::vision::color::yuyv_from_rgb;
 
 /// Counts every allocation of every thread.
 struct Counting;

@@ -239,12 +239,6 @@ fn card_texture(case: &Case) -> RgbImage {
     }
 }
 
-/// `file` in `tests/data/backgrounds/` as the wall, [`WALL_WIDTH_MM`] wide at [`WALL_MM`].
-pub fn wall_photo(file: &str) -> Background {
-    let texture = load_wall(file);
-    Background::from_texture(&texture, WALL_MM, WALL_WIDTH_MM / texture.width() as f64)
-}
-
 fn load_wall(file: &str) -> RgbImage {
     image::open(data(format!("backgrounds/{file}")))
         .expect("wall photo")

@@ -22,7 +22,8 @@ use photopose::vision::lookup::SbsBytes;
 use photopose::vision::PixelFormat;
 
 use crate::cli::{fails_with, photopose};
-use crate::common::{data, repo, scratch, yuyv_from_rgb};
+use crate::common::{data, repo, scratch};
+use photopose::vision::color::yuyv_from_rgb;
 
 /// Frames of the rocket card moving 2–3 mm per frame, rendered in HD and encoded as the
 /// ZED sends them (YUYV), with the card's true poses.

@@ -13,6 +13,7 @@
 pub mod frame_buf;
 pub mod record;
 pub mod replay;
+pub mod scenario;
 pub mod sequence;
 pub mod synthetic;
 pub mod zed;

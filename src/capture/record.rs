@@ -104,10 +104,25 @@ impl Recorder {
     /// Queues a copy of frame `frame_id` for writing, or counts it as skipped when the
     /// writer is behind. Fails once the writer has failed (disk full, …).
     pub fn record(&mut self, frame_id: u64, info: &FrameInfo, frame: &[u8]) -> Result<(), SequenceError> {
+        self.queue(frame_id, info, frame, false)
+    }
+
+    /// [`Recorder::record`] that waits for the writer instead of leaving the frame out
+    /// (a recording made offline, such as a rendered scenario).
+    pub fn record_all(&mut self, frame_id: u64, info: &FrameInfo, frame: &[u8]) -> Result<(), SequenceError> {
+        self.queue(frame_id, info, frame, true)
+    }
+
+    fn queue(&mut self, frame_id: u64, info: &FrameInfo, frame: &[u8], wait: bool) -> Result<(), SequenceError> {
         if self.writer.as_ref().is_some_and(JoinHandle::is_finished) {
             self.finish_writer()?;
         }
-        let (Some(jobs), Ok(mut bytes)) = (&self.jobs, self.free.try_recv()) else {
+        let free = if wait {
+            self.free.recv().ok()
+        } else {
+            self.free.try_recv().ok()
+        };
+        let (Some(jobs), Some(mut bytes)) = (&self.jobs, free) else {
             self.skipped += 1;
             return Ok(());
         };

@@ -144,6 +144,18 @@ pub fn rgb_row_to_yuyv(rgb: &[u8], yuyv: &mut [u8]) {
     }
 }
 
+/// A side-by-side RGB8 frame (both eyes `eye_width` pixels wide, rows back to back)
+/// encoded as the ZED sends it: YUYV, two bytes a pixel (a last partial row is left
+/// out).
+pub fn yuyv_from_rgb(rgb: &[u8], eye_width: usize) -> Vec<u8> {
+    let row = 2 * eye_width;
+    let mut yuyv = vec![0u8; rgb.len() / (3 * row).max(1) * 2 * row];
+    for (src, dst) in rgb.chunks_exact(3 * row).zip(yuyv.chunks_exact_mut(2 * row)) {
+        rgb_row_to_yuyv(src, dst);
+    }
+    yuyv
+}
+
 /// Circular mean of OpenCV hues; `None` for an empty set or hues that cancel out.
 pub fn circular_mean_hue(hues: impl IntoIterator<Item = u8>) -> Option<f64> {
     let (mut sx, mut sy, mut n) = (0.0f64, 0.0f64, 0usize);

@@ -5,8 +5,6 @@
 
 use std::path::{Path, PathBuf};
 
-use photopose::vision::color::rgb_row_to_yuyv;
-
 /// A file or directory of the repository, `REL` relative to its root.
 pub fn repo(rel: impl AsRef<Path>) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
@@ -23,16 +21,4 @@ pub fn scratch(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-/// A side-by-side RGB8 frame (both eyes `eye_width` pixels wide, rows back to back)
-/// encoded as the ZED sends it: YUYV, two bytes a pixel.
-pub fn yuyv_from_rgb(rgb: &[u8], eye_width: usize) -> Vec<u8> {
-    let row = 2 * eye_width;
-    assert_eq!(rgb.len() % (3 * row), 0, "not whole rows of {row} RGB pixels");
-    let mut yuyv = vec![0u8; rgb.len() / 3 * 2];
-    for (src, dst) in rgb.chunks_exact(3 * row).zip(yuyv.chunks_exact_mut(2 * row)) {
-        rgb_row_to_yuyv(src, dst);
-    }
-    yuyv
 }

@@ -4,40 +4,20 @@
 use std::f64::consts::TAU;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use photopose::render::{Occluder, OccluderFill};
 
-use crate::suite::table::{ASTRO, BOWL, CAT, CUP, HOPPER, ROCKET};
-use crate::suite::Card;
+use super::{CardPhoto, Scenario};
+use crate::render::{Occluder, OccluderFill};
 
-/// One sequence.
-pub struct Take {
-    /// Its name: what happens, the card, the wall.
-    pub name: &'static str,
-    /// The card photo and its box.
-    pub card: Card,
-    /// The wall photo in `tests/data/backgrounds/`.
-    pub wall: &'static str,
-    /// The card's length, mm (its breadth by the box's aspect).
-    pub length_mm: f64,
-    /// Frames per second, and the take's length in seconds.
-    pub fps: f64,
-    pub seconds: f64,
-    /// Exposure time, s: the card is rendered at sub-frame times across it and averaged
-    /// (motion blur). 0: a sharp frame.
-    pub exposure_s: f64,
-    /// The card at time t: `left_from_model`.
-    pub motion: fn(f64) -> Isometry3<f64>,
-    /// Per-channel gains `[r, g, b]` on the frame at time t (exposure and white balance).
-    pub light: fn(f64) -> [f64; 3],
-    /// What stands in front of the card at time t, given the card's pose and size.
-    pub occluder: fn(f64, &Isometry3<f64>, [f64; 2]) -> Option<Occluder>,
-    /// Gaussian pixel noise, grey levels.
-    pub noise: f64,
-    /// The frames reach the tracker as YUYV, as the ZED sends them.
-    pub yuyv: bool,
-    /// Seen through the non-identity hand-eye transform.
-    pub hand_eye: bool,
+const fn card(photo: &'static str, bbox: [u32; 4]) -> CardPhoto {
+    CardPhoto { photo, bbox }
 }
+
+const CUP: CardPhoto = card("tests/data/photos/coffee.jpg", [149, 22, 279, 289]);
+const CAT: CardPhoto = card("tests/data/photos/chelsea.jpg", [70, 20, 280, 270]);
+const ASTRO: CardPhoto = card("tests/data/photos/astronaut.jpg", [120, 20, 270, 330]);
+const ROCKET: CardPhoto = card("tests/data/photos/rocket.jpg", [150, 60, 340, 300]);
+const BOWL: CardPhoto = card("tests/data/photos/bowl.jpg", [230, 110, 520, 380]);
+const HOPPER: CardPhoto = card("tests/data/photos/hopper.jpg", [100, 20, 340, 480]);
 
 /// A card at `position` (mm), turned about x, then y, then z (degrees).
 fn pose(position: [f64; 3], deg: [f64; 3]) -> Isometry3<f64> {
@@ -156,18 +136,18 @@ fn occlude(t: f64, card: &Isometry3<f64>, size: [f64; 2]) -> Option<Occluder> {
 
 /// Every take.
 #[rustfmt::skip]
-pub fn all() -> Vec<Take> {
-    let take = |name, card, wall, length_mm, fps, motion| Take {
+pub fn takes() -> Vec<Scenario> {
+    let take = |name, card, wall, length_mm, fps, motion| Scenario {
         name, card, wall, length_mm, fps, seconds: 4.0, exposure_s: 0.0, motion,
         light: steady, occluder: clear, noise: 0.0, yuyv: false, hand_eye: false,
     };
     vec![
-        Take { exposure_s: 1.0 / 60.0, hand_eye: true, ..take("sweep", ROCKET, "room.jpg", 110.0, 30.0, sweep) },
-        Take { exposure_s: 1.0 / 120.0, ..take("sweep-60fps", BOWL, "marigold.jpg", 120.0, 60.0, sweep) },
-        Take { exposure_s: 1.0 / 60.0, yuyv: true, noise: 3.0, ..take("yuyv", CAT, "brushes.jpg", 110.0, 30.0, half_sweep) },
-        Take { light: changing, seconds: 5.0, ..take("light", CUP, "creek.jpg", 100.0, 30.0, slow) },
-        Take { occluder: occlude, seconds: 6.0, ..take("occlude", ASTRO, "dogs.jpg", 120.0, 30.0, slow) },
-        Take { seconds: 6.0, ..take("leave", HOPPER, "boats.jpg", 90.0, 30.0, leave) },
-        Take { seconds: 5.0, hand_eye: true, ..take("approach", ROCKET, "cups.jpg", 110.0, 30.0, approach) },
+        Scenario { exposure_s: 1.0 / 60.0, hand_eye: true, ..take("sweep", ROCKET, "tests/data/backgrounds/room.jpg", 110.0, 30.0, sweep) },
+        Scenario { exposure_s: 1.0 / 120.0, ..take("sweep-60fps", BOWL, "tests/data/backgrounds/marigold.jpg", 120.0, 60.0, sweep) },
+        Scenario { exposure_s: 1.0 / 60.0, yuyv: true, noise: 3.0, ..take("yuyv", CAT, "tests/data/backgrounds/brushes.jpg", 110.0, 30.0, half_sweep) },
+        Scenario { light: changing, seconds: 5.0, ..take("light", CUP, "tests/data/backgrounds/creek.jpg", 100.0, 30.0, slow) },
+        Scenario { occluder: occlude, seconds: 6.0, ..take("occlude", ASTRO, "tests/data/backgrounds/dogs.jpg", 120.0, 30.0, slow) },
+        Scenario { seconds: 6.0, ..take("leave", HOPPER, "tests/data/backgrounds/boats.jpg", 90.0, 30.0, leave) },
+        Scenario { seconds: 5.0, hand_eye: true, ..take("approach", ROCKET, "tests/data/backgrounds/cups.jpg", 110.0, 30.0, approach) },
     ]
 }

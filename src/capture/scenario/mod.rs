@@ -1,0 +1,163 @@
+//! Scenarios: takes of a robot cell for the synthetic camera. A card photo moves in
+//! front of a real photograph (fast sweeps with motion blur, changing light, occluders
+//! crossing, leaving the view and coming back, an approach), filmed by the example
+//! ZED 2i at HD. [`film`] renders them; `photopose render --scenario` writes one as a
+//! recorded sequence, `photopose demo --scenario` plays one through the service, and the
+//! tracking-sequence tests play each through the stream tracker.
+//!
+//! Every take is scored as the held-out sequences are: [`Judged`].
+
+pub mod film;
+mod motion;
+
+use nalgebra::Isometry3;
+
+use crate::render::Occluder;
+
+/// A card photo and the box of the object in it (`x, y, w, h`, photo pixels).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CardPhoto {
+    /// The photo, relative to the repository's root.
+    pub photo: &'static str,
+    /// The object's box in the photo.
+    pub bbox: [u32; 4],
+}
+
+/// One take.
+#[derive(Clone)]
+pub struct Scenario {
+    /// Its name: what happens.
+    pub name: &'static str,
+    /// The card.
+    pub card: CardPhoto,
+    /// The wall photo, relative to the repository's root.
+    pub wall: &'static str,
+    /// The card's length, mm (its breadth by the box's aspect).
+    pub length_mm: f64,
+    /// Frames per second.
+    pub fps: f64,
+    /// The take's length, s.
+    pub seconds: f64,
+    /// Exposure time, s: the card is rendered at sub-frame times across it and averaged
+    /// (motion blur). 0: a sharp frame.
+    pub exposure_s: f64,
+    /// The card at time t: `left_from_model` (mm).
+    pub motion: fn(f64) -> Isometry3<f64>,
+    /// Per-channel gains `[r, g, b]` on the frame at time t (exposure and white balance).
+    pub light: fn(f64) -> [f64; 3],
+    /// What stands in front of the card at time t, given the card's pose and size.
+    pub occluder: fn(f64, &Isometry3<f64>, [f64; 2]) -> Option<Occluder>,
+    /// Gaussian pixel noise, grey levels.
+    pub noise: f64,
+    /// The frames are sent as YUYV, as the ZED sends them.
+    pub yuyv: bool,
+    /// The tests play it through a non-identity hand–eye transform (the demo and
+    /// `render --scenario` use the configuration's).
+    pub hand_eye: bool,
+}
+
+impl Scenario {
+    /// Every take.
+    pub fn all() -> Vec<Scenario> {
+        motion::takes()
+    }
+
+    /// The take called `name`; the error lists the names.
+    pub fn named(name: &str) -> Result<Scenario, String> {
+        Self::all().into_iter().find(|s| s.name == name).ok_or_else(|| {
+            let names: Vec<&str> = Self::all().iter().map(|s| s.name).collect();
+            format!("unknown scenario {name:?}: use one of {}", names.join(", "))
+        })
+    }
+
+    /// The card's size `[L, B]`, mm: its length and the box's aspect.
+    pub fn size_mm(&self) -> [f64; 2] {
+        let [_, _, w, h] = self.card.bbox;
+        [self.length_mm, self.length_mm * h as f64 / w as f64]
+    }
+
+    /// Frames in the take.
+    pub fn frames(&self) -> usize {
+        (self.seconds * self.fps).round() as usize
+    }
+}
+
+/// Success: a `tracking` pose within these bounds (mm, relative size, degrees) on a frame
+/// with at least [`SCORED_SHARE`] of the card visible.
+pub const GOOD: [f64; 3] = [20.0, 0.10, 10.0];
+/// The share of the card in view from which a frame is scored.
+pub const SCORED_SHARE: f64 = 0.6;
+/// A `tracking` pose this far off (mm, degrees) is a wrong one a robot would act on.
+pub const WRONG: [f64; 2] = [50.0, 20.0];
+/// Below this share of the card in view, the card is out of view.
+pub const OUT_OF_VIEW: f64 = 0.1;
+
+/// A pose judged against the truth of its frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Judged {
+    /// Share of the card the left camera sees.
+    pub visible: f64,
+    /// Whether the pose said `tracking`.
+    pub tracking: bool,
+    /// Position (mm), worst relative size and rotation (degrees) errors.
+    pub errors: [f64; 3],
+}
+
+impl Judged {
+    /// Counts towards the success share: enough of the card in view.
+    pub fn scored(&self) -> bool {
+        self.visible >= SCORED_SHARE
+    }
+
+    /// A `tracking` pose within [`GOOD`].
+    pub fn good(&self) -> bool {
+        self.tracking && self.errors.iter().zip(GOOD).all(|(e, g)| *e <= g)
+    }
+
+    /// A `tracking` pose beyond [`WRONG`].
+    pub fn wrong(&self) -> bool {
+        self.tracking && (self.errors[0] > WRONG[0] || self.errors[2] > WRONG[1])
+    }
+
+    /// A `tracking` pose while the card is out of view.
+    pub fn tracking_out_of_view(&self) -> bool {
+        self.tracking && self.visible < OUT_OF_VIEW
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unknown_scenario_names_the_known_ones() {
+        assert_eq!(Scenario::named("sweep").map(|s| s.frames()), Ok(120));
+        assert_eq!(
+            Scenario::named("swoop").err().as_deref(),
+            Some("unknown scenario \"swoop\": use one of sweep, sweep-60fps, yuyv, light, occlude, leave, approach")
+        );
+    }
+
+    #[test]
+    fn a_pose_is_judged_by_the_bounds_of_the_held_out_sequences() {
+        let judged = |visible, tracking, errors| Judged {
+            visible,
+            tracking,
+            errors,
+        };
+        let edge = judged(0.6, true, [20.0, 0.10, 10.0]);
+        assert!(edge.scored() && edge.good() && !edge.wrong());
+        assert!(!judged(0.59, true, [0.0; 3]).scored());
+        assert!(!judged(1.0, true, [20.1, 0.0, 0.0]).good());
+        assert!(!judged(1.0, true, [0.0, 0.11, 0.0]).good());
+        assert!(!judged(1.0, false, [0.0; 3]).good(), "only a tracking pose counts");
+        assert!(judged(1.0, true, [50.1, 0.0, 0.0]).wrong());
+        assert!(judged(1.0, true, [0.0, 0.0, 20.1]).wrong());
+        assert!(
+            !judged(1.0, false, [500.0, 0.0, 90.0]).wrong(),
+            "a searching pose is never wrong"
+        );
+        assert!(judged(0.05, true, [0.0; 3]).tracking_out_of_view());
+        assert!(!judged(0.05, false, [0.0; 3]).tracking_out_of_view());
+    }
+}
