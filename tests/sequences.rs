@@ -35,8 +35,14 @@ const FLOORS: [(&str, f64); 7] = [
     ("approach", 0.25),
 ];
 
-/// Every take at every timing: the tables, what happened in it, the promises and the
-/// floors.
+/// A ceiling on the `tracking` poses more than 50 mm or 20° off, over every take and
+/// timing: 18 on 2026-12-03 (9 on `sweep`, 9 on `yuyv`: tilts drifting while tracked),
+/// after the texture test of tracking frames in doubt took it down from 101 (70 on
+/// `sweep-60fps`, 20 on `occlude`). The target is 0.
+const WRONG_CEILING: usize = 18;
+
+/// Every take at every timing: the tables, what happened in it, the promises, the floors
+/// and the ceiling.
 #[test]
 fn tracking_sequences() {
     // `TAKES=light,occlude` plays only those takes.
@@ -60,6 +66,13 @@ fn tracking_sequences() {
         assert!(
             median >= floor,
             "{name}: median success {median:.2} below its floor {floor}"
+        );
+    }
+    if only.is_none() {
+        let wrong: usize = takes.iter().flatten().map(|p| p.wrong()).sum();
+        assert!(
+            wrong <= WRONG_CEILING,
+            "{wrong} wrong tracking poses, more than {WRONG_CEILING}"
         );
     }
 }

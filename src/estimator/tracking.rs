@@ -23,6 +23,7 @@ use crate::estimator::model::PhotoModel;
 use crate::estimator::oneshot::{scorer_for, Prepared};
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::{GaSettings, Mode, RobustSettings, TrackingSettings};
+use crate::estimator::verify::texture::{self, Brightness};
 use crate::estimator::verify::tilt_resolved;
 use crate::vision::frame::Region;
 use crate::vision::lookup::{LevelLookup, SbsBytes};
@@ -82,6 +83,11 @@ pub const RELOCATE_GENERATIONS: usize = 12;
 /// and larger) matches the left image as well; only the stereo term tells them apart,
 /// and 30 mm off in depth it still scores 0.88 of the truth.
 const DOUBT_SHARE: f64 = 0.95;
+
+/// The texture terms (stereo, structure) a tracking frame in doubt needs at its pose to
+/// be `tracking`: a relocation the verdict rejected may have landed on a region of the
+/// card's colours at another depth, which the colour fitness cannot tell from the card.
+const DOUBT_TEXTURE: [f64; 2] = [0.7, 0.75];
 
 /// Relocations of the last tracked pose tried after the object was lost, before the next
 /// acquisition (each reads and searches the whole frame: about 0.1 s at HD). An object
@@ -193,6 +199,12 @@ impl Tracker {
         } else {
             Plan::Track
         }
+    }
+
+    /// Whether the pose is tracked in doubt (after a relocation the verdict did not call
+    /// found), until a frame is `tracking`.
+    pub fn doubted(&self) -> bool {
+        self.doubted
     }
 
     /// Whether the last frame was `tracking`.
@@ -456,6 +468,8 @@ pub struct StreamTracker {
     tracker: Tracker,
     /// The gains that bring each frame back to the light of the acquisition's frame.
     exposure: Exposure,
+    /// Both eyes' brightness in the regions of a tracking frame read in doubt.
+    eyes: Option<[Brightness; 2]>,
     ready: Option<Ready>,
 }
 
@@ -498,6 +512,7 @@ impl StreamTracker {
             points,
             regions: None,
             tracker,
+            eyes: None,
             ready: None,
         }
     }
@@ -541,6 +556,10 @@ impl StreamTracker {
                     self.exposure.gains()
                 };
                 regions.refill(frame, &rois, &self.scorer.texel_rule().with_gains(gains));
+                self.eyes = self
+                    .tracker
+                    .doubted()
+                    .then(|| [0, 1].map(|eye| Brightness::of_region(frame, eye, &rois[eye])));
                 Ready::Regions
             }
             None => {
@@ -567,7 +586,12 @@ impl StreamTracker {
                 let regions = std::slice::from_ref(self.regions.as_ref()?);
                 let threads = self.config.tracking.threads;
                 let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
+                let doubted = self.tracker.doubted();
                 let mut estimate = self.tracker.step(&problem);
+                if doubted && estimate.state == TrackState::Tracking && !self.texture_holds(&problem, &estimate.best) {
+                    estimate.state = TrackState::Searching;
+                    self.tracker.doubt();
+                }
                 // A pose whose tilt the stereo pair cannot resolve (a small card far
                 // away) is followed but not called tracking: its orientation is a guess.
                 let s = &self.scorer;
@@ -608,6 +632,25 @@ impl StreamTracker {
                 estimate
             }
         })
+    }
+
+    /// Whether the two eyes' brightness agrees at `pose` on a tracking frame read in
+    /// doubt ([`DOUBT_TEXTURE`]).
+    fn texture_holds(&self, problem: &Problem, pose: &PoseSize) -> bool {
+        let Some([left, right]) = &self.eyes else {
+            return false;
+        };
+        let rig = &problem.levels[0].rig;
+        let t = texture::score(
+            &self.points[0],
+            rig,
+            [left, right],
+            &self.scorer.left_from_hand,
+            pose,
+            true,
+            false,
+        );
+        t.stereo >= DOUBT_TEXTURE[0] && t.structure >= DOUBT_TEXTURE[1]
     }
 
     /// Leaves this frame out: the next step gives no estimate.

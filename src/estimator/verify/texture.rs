@@ -12,12 +12,16 @@ use nalgebra::Isometry3;
 use crate::camera::{Intrinsics, StereoRig};
 use crate::estimator::fitness::{view_weight, PointProjector, PointSet};
 use crate::estimator::pose::PoseSize;
+use crate::vision::frame::Region;
+use crate::vision::lookup::SbsBytes;
 use crate::vision::simd::avx2_multiversion;
 
 /// One eye's brightness (HSV value, the maximum of R, G and B), row-major, and its
 /// detail: the brightness minus its 5 × 5 mean, which keeps only the fine texture.
 #[derive(Debug, Clone)]
 pub struct Brightness {
+    /// Image pixel of the top-left corner (a region of the image; (0, 0) for all of it).
+    origin: (f32, f32),
     width: usize,
     height: usize,
     /// Each pixel's brightness and detail, side by side: a sample reads both from the
@@ -39,10 +43,34 @@ impl Brightness {
             .pixels()
             .map(|p| p.0.into_iter().max().unwrap_or(0) as f32)
             .collect();
+        Self::from_values(px, width, height, (0, 0))
+    }
+
+    /// [`Brightness::of`] the pixels of `region` in eye `eye` (0 left, 1 right) of a
+    /// side-by-side frame; samples keep the image's pixel coordinates.
+    pub fn of_region(frame: &SbsBytes, eye: usize, region: &Region) -> Self {
+        let cols = region.cols.start.min(frame.width)..region.cols.end.min(frame.width);
+        let rows = region.rows.start.min(frame.height)..region.rows.end.min(frame.height);
+        let (width, height) = (cols.len(), rows.len());
+        let mut px = Vec::with_capacity(width * height);
+        for v in rows.clone() {
+            for u in cols.clone() {
+                px.push(
+                    frame
+                        .rgb_at(eye, u, v)
+                        .map_or(0.0, |p| p.into_iter().max().unwrap_or(0) as f32),
+                );
+            }
+        }
+        Self::from_values(px, width, height, (cols.start, rows.start))
+    }
+
+    fn from_values(px: Vec<f32>, width: usize, height: usize, origin: (usize, usize)) -> Self {
         let mean = box_mean(&px, width, height, DETAIL_RADIUS);
         let detail: Vec<f32> = px.iter().zip(&mean).map(|(a, m)| a - m).collect();
         let noise_var = noise_variance(&detail, width, height);
         Self {
+            origin: (origin.0 as f32, origin.1 as f32),
             width,
             height,
             px: px.into_iter().zip(detail).map(|(a, d)| [a, d]).collect(),
@@ -54,6 +82,7 @@ impl Brightness {
     /// variance of the noise in that detail sample; `None` outside the image.
     #[inline]
     fn sample(&self, u: f32, v: f32) -> Option<(f32, f32, f32)> {
+        let (u, v) = (u - self.origin.0, v - self.origin.1);
         if !(u >= 0.0 && v >= 0.0) {
             return None;
         }
