@@ -586,11 +586,14 @@ impl StreamTracker {
                 let regions = std::slice::from_ref(self.regions.as_ref()?);
                 let threads = self.config.tracking.threads;
                 let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
-                let doubted = self.tracker.doubted();
+                // Read only on a frame in doubt (see `prepare`).
+                let eyes = self.eyes.take();
                 let mut estimate = self.tracker.step(&problem);
-                if doubted && estimate.state == TrackState::Tracking && !self.texture_holds(&problem, &estimate.best) {
-                    estimate.state = TrackState::Searching;
-                    self.tracker.doubt();
+                if let Some(eyes) = eyes.filter(|_| estimate.state == TrackState::Tracking) {
+                    if !self.texture_holds(&problem, &eyes, &estimate.best) {
+                        estimate.state = TrackState::Searching;
+                        self.tracker.doubt();
+                    }
                 }
                 // A pose whose tilt the stereo pair cannot resolve (a small card far
                 // away) is followed but not called tracking: its orientation is a guess.
@@ -634,12 +637,9 @@ impl StreamTracker {
         })
     }
 
-    /// Whether the two eyes' brightness agrees at `pose` on a tracking frame read in
-    /// doubt ([`DOUBT_TEXTURE`]).
-    fn texture_holds(&self, problem: &Problem, pose: &PoseSize) -> bool {
-        let Some([left, right]) = &self.eyes else {
-            return false;
-        };
+    /// Whether the two eyes' brightness `[left, right]` agrees at `pose` on a tracking
+    /// frame read in doubt ([`DOUBT_TEXTURE`]).
+    fn texture_holds(&self, problem: &Problem, [left, right]: &[Brightness; 2], pose: &PoseSize) -> bool {
         let rig = &problem.levels[0].rig;
         let t = texture::score(
             &self.points[0],

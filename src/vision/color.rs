@@ -146,10 +146,13 @@ pub fn rgb_row_to_yuyv(rgb: &[u8], yuyv: &mut [u8]) {
 
 /// A side-by-side RGB8 frame (both eyes `eye_width` pixels wide, rows back to back)
 /// encoded as the ZED sends it: YUYV, two bytes a pixel (a last partial row is left
-/// out).
+/// out; no rows for a width of 0).
 pub fn yuyv_from_rgb(rgb: &[u8], eye_width: usize) -> Vec<u8> {
     let row = 2 * eye_width;
-    let mut yuyv = vec![0u8; rgb.len() / (3 * row).max(1) * 2 * row];
+    if row == 0 {
+        return Vec::new();
+    }
+    let mut yuyv = vec![0u8; rgb.len() / (3 * row) * 2 * row];
     for (src, dst) in rgb.chunks_exact(3 * row).zip(yuyv.chunks_exact_mut(2 * row)) {
         rgb_row_to_yuyv(src, dst);
     }
@@ -229,6 +232,20 @@ mod tests {
         assert_eq!(yuyv[0], red.0);
         assert_eq!(yuyv[2], blue.0);
         assert_eq!(yuyv[1], (red.1 as u16 + blue.1 as u16).div_ceil(2) as u8);
+    }
+
+    #[test]
+    fn a_side_by_side_frame_becomes_whole_yuyv_rows() {
+        // Two rows of a frame one pixel wide per eye, and a stray byte.
+        let rgb = [[255, 0, 0, 0, 0, 255], [0, 0, 255, 255, 0, 0]].concat();
+        let mut partial = rgb.clone();
+        partial.push(7);
+        let yuyv = yuyv_from_rgb(&partial, 1);
+        assert_eq!(yuyv.len(), 8);
+        let mut first = [0u8; 4];
+        rgb_row_to_yuyv(&rgb[..6], &mut first);
+        assert_eq!(yuyv[..4], first);
+        assert!(yuyv_from_rgb(&rgb, 0).is_empty(), "a width of 0 has no rows");
     }
 
     #[test]
