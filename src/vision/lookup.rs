@@ -402,6 +402,16 @@ impl SbsBytes<'_> {
             && self.bytes.len() >= self.row_stride * (self.height - 1) + row
     }
 
+    /// The RGB bytes of columns `cols` of row `v` in eye `eye`, for an RGB8 frame that
+    /// holds them; `None` otherwise (YUYV, or out of the frame).
+    pub fn rgb_row(&self, eye: usize, v: usize, cols: std::ops::Range<usize>) -> Option<&[u8]> {
+        if self.format != PixelFormat::Rgb8 || cols.end > self.width || v >= self.height {
+            return None;
+        }
+        let start = v * self.row_stride + (eye * self.width + cols.start) * 3;
+        self.bytes.get(start..start + cols.len() * 3)
+    }
+
     /// The RGB of pixel `(u, v)` of eye `eye` (0 left, 1 right; YUYV through
     /// [`yuv_to_rgb`]); `None` outside the image or the bytes.
     pub fn rgb_at(&self, eye: usize, u: usize, v: usize) -> Option<[u8; 3]> {

@@ -54,12 +54,13 @@ impl Brightness {
         let (width, height) = (cols.len(), rows.len());
         let mut px = Vec::with_capacity(width * height);
         for v in rows.clone() {
-            for u in cols.clone() {
-                px.push(
+            match frame.rgb_row(eye, v, cols.clone()) {
+                Some(row) => px.extend(row.chunks_exact(3).map(|p| p[0].max(p[1]).max(p[2]) as f32)),
+                None => px.extend(cols.clone().map(|u| {
                     frame
                         .rgb_at(eye, u, v)
-                        .map_or(0.0, |p| p.into_iter().max().unwrap_or(0) as f32),
-                );
+                        .map_or(0.0, |p| p.into_iter().max().unwrap_or(0) as f32)
+                })),
             }
         }
         Self::from_values(px, width, height, (cols.start, rows.start))
@@ -129,22 +130,35 @@ fn noise_variance(detail: &[f32], w: usize, h: usize) -> f32 {
     *vars.select_nth_unstable_by(k, f32::total_cmp).1
 }
 
-/// The mean of each pixel's `(2r + 1)²` neighbourhood (clamped at the edges).
+/// The mean of each pixel's `(2r + 1)²` neighbourhood (clamped at the edges): a pass
+/// along each row, then one adding whole rows (in memory order, not down columns).
 fn box_mean(px: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
-    let pass = |src: &[f32], stride: usize, len: usize, lines: usize, step: usize| {
-        let mut out = vec![0.0f32; src.len()];
-        for line in 0..lines {
-            let at = |k: usize| src[line * step + k * stride];
-            for k in 0..len {
-                let (a, b) = (k.saturating_sub(r), (k + r).min(len - 1));
-                let sum: f32 = (a..=b).map(at).sum();
-                out[line * step + k * stride] = sum / (b - a + 1) as f32;
-            }
+    if w == 0 || h == 0 {
+        return vec![0.0; px.len()];
+    }
+    let mut rows = vec![0.0f32; px.len()];
+    let window = |k: usize, len: usize| (k.saturating_sub(r), (k + r).min(len - 1));
+    for (src, dst) in px.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
+        for (k, d) in dst.iter_mut().enumerate() {
+            let (a, b) = window(k, w);
+            *d = src[a..=b].iter().sum::<f32>() / (b - a + 1) as f32;
         }
-        out
-    };
-    let rows = pass(px, 1, w, h, w);
-    pass(&rows, w, h, w, 1)
+    }
+    // Each output row is first written, never read before (a fresh buffer's pages
+    // are then mapped once, not on a read and again on the write).
+    let mut out = Vec::with_capacity(px.len());
+    for y in 0..h {
+        let (a, b) = window(y, h);
+        let start = out.len();
+        out.extend_from_slice(&rows[a * w..(a + 1) * w]);
+        let dst = &mut out[start..];
+        for src in rows[(a + 1) * w..(b + 1) * w].chunks_exact(w) {
+            dst.iter_mut().zip(src).for_each(|(d, s)| *d += s);
+        }
+        let n = (b - a + 1) as f32;
+        dst.iter_mut().for_each(|d| *d /= n);
+    }
+    out
 }
 
 /// The texture terms of one candidate, each a normalised correlation in `[-1, 1]`
@@ -359,5 +373,68 @@ fn seen_weight(share: f64, partial_view: bool) -> f64 {
         view_weight(share)
     } else {
         share
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vision::PixelFormat;
+
+    /// A `w × h` pseudo-random RGB image.
+    fn noise_image(w: u32, h: u32, seed: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let k = (x * 7919 + y * 104_729 + seed * 31).wrapping_mul(2_654_435_761);
+            image::Rgb([(k >> 8) as u8, (k >> 16) as u8, (k >> 24) as u8])
+        })
+    }
+
+    #[test]
+    fn box_mean_is_the_mean_of_the_clamped_window() {
+        let (w, h, r) = (9, 6, 2);
+        let px: Vec<f32> = (0..w * h).map(|i| ((i * 37) % 101) as f32).collect();
+        let mean = box_mean(&px, w, h, r);
+        for y in 0..h {
+            for x in 0..w {
+                let (xs, ys) = (
+                    x.saturating_sub(r)..=(x + r).min(w - 1),
+                    y.saturating_sub(r)..=(y + r).min(h - 1),
+                );
+                let n = (xs.clone().count() * ys.clone().count()) as f32;
+                let px = &px;
+                let sum: f32 = ys.flat_map(|yy| xs.clone().map(move |xx| px[yy * w + xx])).sum();
+                assert!((mean[y * w + x] - sum / n).abs() < 1e-4, "({x}, {y})");
+            }
+        }
+        assert!(box_mean(&[], 0, 0, r).is_empty());
+    }
+
+    #[test]
+    fn a_region_of_a_frame_reads_as_the_same_crop_of_the_image() {
+        let (left, right) = (noise_image(40, 30, 1), noise_image(40, 30, 2));
+        let mut bytes = Vec::new();
+        for y in 0..30 {
+            for eye in [&left, &right] {
+                (0..40).for_each(|x| bytes.extend(eye.get_pixel(x, y).0));
+            }
+        }
+        let frame = SbsBytes {
+            bytes: &bytes,
+            width: 40,
+            height: 30,
+            row_stride: 240,
+            format: PixelFormat::Rgb8,
+        };
+        // Partly outside the image: clamped to columns 25..40, rows 4..30.
+        let region = Region {
+            cols: 25..50,
+            rows: 4..33,
+        };
+        for (eye, img) in [&left, &right].into_iter().enumerate() {
+            let read = Brightness::of_region(&frame, eye, &region);
+            let crop = Brightness::of(&image::imageops::crop_imm(img, 25, 4, 15, 26).to_image());
+            assert_eq!((read.width, read.height, read.origin), (15, 26, (25.0, 4.0)));
+            assert_eq!(read.px, crop.px, "eye {eye}");
+        }
     }
 }
