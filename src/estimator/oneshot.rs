@@ -144,6 +144,29 @@ pub fn scorer_for(model: &PhotoModel, config: &Config) -> Scorer {
 /// is foreshortened by 6–30 % along one side.
 const RETRY_SCAN_TILT_DEG: f64 = 35.0;
 
+/// How a search of the robust one-shot differs from the first, by its number.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Retry {
+    /// It starts one pyramid level finer (small or faint targets).
+    finer: bool,
+    /// Its scan tries tilted placements instead of facing ones.
+    tilted: bool,
+    /// Its scan is dense and ranks by structure too (a wall of the card's colours).
+    dense: bool,
+}
+
+impl Retry {
+    /// Search 0 is the plain one; 1 starts finer, 2 scans tilted, 3 both; 4 and later
+    /// scan densely (the slowest, when the others found nothing), every second one finer.
+    fn of(attempt: u64) -> Self {
+        Self {
+            finer: attempt % 2 == 1,
+            tilted: (2..4).contains(&attempt),
+            dense: attempt >= 4,
+        }
+    }
+}
+
 /// Runs the configured GA for `generations` generations from `seed`.
 pub fn run(
     model: &PhotoModel,
@@ -189,8 +212,8 @@ pub fn search_observed(
     let mut best: Option<Outcome> = None;
     for attempt in 0..=config.robust.retries as u64 {
         let seed = seed.wrapping_add(attempt);
-        // The first retry, and every second one after it, starts one pyramid level finer.
-        let levels = (prepared.levels.len() - (attempt % 2) as usize).max(1);
+        let retry = Retry::of(attempt);
+        let levels = (prepared.levels.len() - retry.finer as usize).max(1);
         if attempt > 0 {
             tracing::info!("not found; searching again from seed {seed} on {levels} pyramid levels");
         }
@@ -206,8 +229,8 @@ pub fn search_observed(
         });
         let mut problem = prepared.problem_on(config, levels);
         problem.observer = shifted.as_ref().map(|o| o as ga::observe::Observer<'_>);
-        // From the second retry on, the scan tries tilted placements instead of facing.
-        if attempt >= 2 {
+        problem.scan_dense = retry.dense;
+        if retry.tilted {
             problem.scan_tilt = RETRY_SCAN_TILT_DEG.to_radians();
         }
         let mut outcome = ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress);
@@ -333,4 +356,25 @@ pub fn score_at(
     let prepared = Prepared::new(model, images, config)?;
     let problem = prepared.problem(config);
     Ok(problem.evaluate(0, &problem.bounds.encode(pose)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Retry;
+
+    #[test]
+    fn retries_start_finer_then_tilt_then_scan_densely() {
+        let plan: Vec<[bool; 3]> = (0..6).map(Retry::of).map(|r| [r.finer, r.tilted, r.dense]).collect();
+        assert_eq!(
+            plan,
+            [
+                [false, false, false],
+                [true, false, false],
+                [false, true, false],
+                [true, true, false],
+                [false, false, true],
+                [true, false, true],
+            ]
+        );
+    }
 }

@@ -261,7 +261,7 @@ impl Default for RobustSettings {
             min_extent_px: 24.0,
             stereo_weight: 0.5,
             texture_weight: 3.0,
-            retries: 3,
+            retries: 4,
         }
     }
 }

@@ -134,6 +134,10 @@ pub struct Problem<'a> {
     /// the model's x and about its y axis instead of facing the camera; 0: facing (see
     /// [`scan`]).
     pub scan_tilt: f64,
+    /// The acquisition scan runs on a finer grid of sizes and rolls and ranks its first
+    /// pass by the structure term as well as by colour (see [`scan`]): slower, for a
+    /// retry where the colours of the wall match the card's.
+    pub scan_dense: bool,
 }
 
 impl<'a> Problem<'a> {
@@ -154,6 +158,7 @@ impl<'a> Problem<'a> {
             texture: None,
             observer: None,
             scan_tilt: 0.0,
+            scan_dense: false,
         }
     }
 

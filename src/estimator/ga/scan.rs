@@ -14,11 +14,15 @@ use crate::vision::lookup::LevelLookup;
 
 /// Pixel step of the position scan on the coarsest level.
 const STEP_PX: f64 = 3.0;
-/// Apparent sizes (model length in full-resolution pixels), log-spaced.
+/// Apparent sizes (model length in full-resolution pixels), log-spaced: consecutive
+/// sizes 1.6 times apart, or 1.35 in a dense scan ([`Problem::scan_dense`]).
 const SIZES: usize = 8;
+const DENSE_SIZES: usize = 12;
 const LARGEST_FRACTION: f64 = 0.6;
-/// In-plane rotations, evenly spaced over the full turn.
+/// In-plane rotations, evenly spaced over the full turn: 45° apart, or 22.5° in a dense
+/// scan.
 const ROLLS: usize = 8;
+const DENSE_ROLLS: usize = 16;
 /// The first pass scores every placement with one point in `SPARSE`; the `RESCORE` best
 /// are then scored with every point.
 const SPARSE: usize = 4;
@@ -39,7 +43,7 @@ struct Placement {
     /// The model's rotation in the left camera's frame: an in-plane rotation (about the
     /// line of sight), possibly tilted about the model's own axes.
     roll: UnitQuaternion<f64>,
-    /// Index of its apparent size, `0..SIZES`.
+    /// Index of its apparent size, `0..` the grid's sizes.
     size: usize,
 }
 
@@ -173,15 +177,16 @@ impl<'p, 'a> Scan<'p, 'a> {
         placement.candidate(self.problem, &self.hand_from_left, z)
     }
 
-    /// Every placement: the left image's pixels every [`STEP_PX`], at [`SIZES`] apparent
+    /// Every placement: the left image's pixels every [`STEP_PX`], at [`SIZES`] (dense: [`DENSE_SIZES`]) apparent
     /// sizes from the smallest allowed extent to a large share of the image, and
-    /// [`ROLLS`] in-plane rotations, facing or tilted (see [`Scan::orientations`]).
+    /// [`ROLLS`] (dense: [`DENSE_ROLLS`]) in-plane rotations, facing or tilted (see [`Scan::orientations`]).
     fn placements(&self) -> Grid {
         let (lv, problem) = (self.level, self.problem);
         let (w, h) = (lv.rig.width as f64, lv.rig.height as f64);
         let fx_full = lv.rig.left.fx / lv.scale;
         let smallest = problem.scorer.min_extent_px.max(16.0) / fx_full;
         let largest = LARGEST_FRACTION * (lv.rig.height as f64 / lv.scale) / fx_full;
+        let sizes = if problem.scan_dense { DENSE_SIZES } else { SIZES };
         let mut pixels = Vec::new();
         let mut v = STEP_PX / 2.0;
         while v < h {
@@ -194,23 +199,24 @@ impl<'p, 'a> Scan<'p, 'a> {
         }
         Grid {
             pixels,
-            sizes: (0..SIZES)
-                .map(|si| smallest * (largest / smallest).powf(si as f64 / (SIZES - 1) as f64))
+            sizes: (0..sizes)
+                .map(|si| smallest * (largest / smallest).powf(si as f64 / (sizes - 1) as f64))
                 .collect(),
             orientations: self.orientations(),
         }
     }
 
-    /// The [`ROLLS`] in-plane rotations; where [`Problem::scan_tilt`] is set, each tilted
+    /// The in-plane rotations; where [`Problem::scan_tilt`] is set, each tilted
     /// by it about the model's x and about its y axis instead (a card tilted far from
     /// facing looks shorter along one side, and a facing model of either size misses
     /// it; the searches that scan tilted have had a facing scan before).
     fn orientations(&self) -> Vec<UnitQuaternion<f64>> {
         let tilt = self.problem.scan_tilt;
+        let rolls = if self.problem.scan_dense { DENSE_ROLLS } else { ROLLS };
         let mut out = Vec::new();
-        for ri in 0..ROLLS {
+        for ri in 0..rolls {
             let roll =
-                UnitQuaternion::from_scaled_axis(Vector3::z() * (std::f64::consts::TAU * ri as f64 / ROLLS as f64));
+                UnitQuaternion::from_scaled_axis(Vector3::z() * (std::f64::consts::TAU * ri as f64 / rolls as f64));
             if tilt == 0.0 {
                 out.push(roll);
             } else {
@@ -222,16 +228,20 @@ impl<'p, 'a> Scan<'p, 'a> {
 
     /// Indices of the most promising placements, best first by `F_L` at the reference
     /// depth: a cheap pass with one point in [`SPARSE`], then every point for the
-    /// [`RESCORE`] best of it.
+    /// [`RESCORE`] best of it. A dense scan adds the structure term to the cheap pass: on
+    /// a wall of the card's colours `F_L` alone drops the card's placements there.
     fn best_placements(&self, grid: &Grid) -> Vec<usize> {
         let problem = self.problem;
         let sparse = self.points.every(SPARSE);
         let mut order: Vec<usize> = (0..grid.len()).collect();
         let mut rough = vec![0.0; grid.len()];
         problem.par_fill(&order, &mut rough, |&i| {
-            problem
-                .scorer
-                .evaluate_left(&sparse, self.level, &self.candidate(&grid.get(i), self.z_ref))
+            let c = self.candidate(&grid.get(i), self.z_ref);
+            if problem.scan_dense {
+                self.left_score(&sparse, &c)
+            } else {
+                problem.scorer.evaluate_left(&sparse, self.level, &c)
+            }
         });
         let promising = RESCORE.min(order.len());
         if promising < order.len() {
@@ -284,10 +294,10 @@ impl<'p, 'a> Scan<'p, 'a> {
 /// every larger size.
 fn distinct(grid: &Grid, order: &[usize]) -> Vec<Placement> {
     let mut kept: Vec<Placement> = Vec::with_capacity(KEEP);
-    let mut per_size = [0usize; SIZES];
+    let mut per_size = vec![0usize; grid.sizes.len()];
     for &i in order {
         let p = grid.get(i);
-        if per_size[p.size] == KEEP / SIZES {
+        if per_size[p.size] == KEEP / grid.sizes.len() {
             continue;
         }
         let near = kept.iter().any(|k| {
