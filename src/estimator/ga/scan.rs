@@ -177,9 +177,10 @@ impl<'p, 'a> Scan<'p, 'a> {
         placement.candidate(self.problem, &self.hand_from_left, z)
     }
 
-    /// Every placement: the left image's pixels every [`STEP_PX`], at [`SIZES`] (dense: [`DENSE_SIZES`]) apparent
+    /// Every placement: the left image's pixels every [`STEP_PX`], at [`SIZES`] apparent
     /// sizes from the smallest allowed extent to a large share of the image, and
-    /// [`ROLLS`] (dense: [`DENSE_ROLLS`]) in-plane rotations, facing or tilted (see [`Scan::orientations`]).
+    /// [`ROLLS`] in-plane rotations ([`DENSE_SIZES`] and [`DENSE_ROLLS`] in a dense
+    /// scan), facing or tilted (see [`Scan::orientations`]).
     fn placements(&self) -> Grid {
         let (lv, problem) = (self.level, self.problem);
         let (w, h) = (lv.rig.width as f64, lv.rig.height as f64);
@@ -206,8 +207,8 @@ impl<'p, 'a> Scan<'p, 'a> {
         }
     }
 
-    /// The in-plane rotations; where [`Problem::scan_tilt`] is set, each tilted
-    /// by it about the model's x and about its y axis instead (a card tilted far from
+    /// The in-plane rotations; where [`Problem::scan_tilt`] is set, each tilted by it
+    /// about the model's x and about its y axis instead (a card tilted far from
     /// facing looks shorter along one side, and a facing model of either size misses
     /// it; the searches that scan tilted have had a facing scan before).
     fn orientations(&self) -> Vec<UnitQuaternion<f64>> {
