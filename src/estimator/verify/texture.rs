@@ -39,10 +39,7 @@ impl Brightness {
     /// The HSV value of every pixel of `img`, and its detail.
     pub fn of(img: &RgbImage) -> Self {
         let (width, height) = (img.width() as usize, img.height() as usize);
-        let px: Vec<f32> = img
-            .pixels()
-            .map(|p| p.0.into_iter().max().unwrap_or(0) as f32)
-            .collect();
+        let px: Vec<f32> = img.pixels().map(|p| hsv_value(&p.0)).collect();
         Self::from_values(px, width, height, (0, 0))
     }
 
@@ -55,12 +52,11 @@ impl Brightness {
         let mut px = Vec::with_capacity(width * height);
         for v in rows.clone() {
             match frame.rgb_row(eye, v, cols.clone()) {
-                Some(row) => px.extend(row.chunks_exact(3).map(|p| p[0].max(p[1]).max(p[2]) as f32)),
-                None => px.extend(cols.clone().map(|u| {
-                    frame
-                        .rgb_at(eye, u, v)
-                        .map_or(0.0, |p| p.into_iter().max().unwrap_or(0) as f32)
-                })),
+                Some(row) => px.extend(row.chunks_exact(3).map(hsv_value)),
+                None => px.extend(
+                    cols.clone()
+                        .map(|u| frame.rgb_at(eye, u, v).map_or(0.0, |p| hsv_value(&p))),
+                ),
             }
         }
         Self::from_values(px, width, height, (cols.start, rows.start))
@@ -103,6 +99,12 @@ impl Brightness {
         let w2 = ((1.0 - fx).powi(2) + fx * fx) * ((1.0 - fy).powi(2) + fy * fy);
         Some((at(0), at(1), self.noise_var * w2))
     }
+}
+
+/// A pixel's HSV value: its largest channel.
+#[inline]
+fn hsv_value(rgb: &[u8]) -> f32 {
+    rgb.iter().copied().max().unwrap_or(0) as f32
 }
 
 /// The noise variance of a detail image: the variance of its flattest 8 × 8 blocks
