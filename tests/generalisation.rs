@@ -7,7 +7,7 @@
 //! Beside the accuracy suite's hand-made scenes, these are drawn at random: a second
 //! check of the verdict on poses nobody chose. Asserted: no pose more than 20 mm or 10°
 //! off is reported found, and the share within 10 mm, 5 % and 5° stays at or above its
-//! floor (a guard against regressions; the targets are printed and not reached yet).
+//! floor (a guard against regressions; whether the targets are reached is printed).
 
 use std::path::Path;
 
@@ -17,6 +17,7 @@ use photopose::config::Config;
 use photopose::estimator::model::PhotoModel;
 use photopose::estimator::oneshot;
 use photopose::estimator::pose::{rotation_error_deg, PoseSize};
+use photopose::estimator::verify::plane;
 use photopose::render::{self, Background, Card, Scene};
 use photopose::vision::frame::StereoImages;
 use rand::rngs::StdRng;
@@ -33,9 +34,9 @@ const CARDS: [(&str, [i64; 4]); 4] = [
     ("rocket.jpg", [150, 60, 340, 300]),
 ];
 
-/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-02: 35 of 40; the
+/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 40 of 40; the
 /// floor is 2 scenes below (a guard against regressions, not the target).
-const SUCCESS_FLOOR: f64 = 0.82;
+const SUCCESS_FLOOR: f64 = 0.94;
 
 /// One random scene's parameters and its rendering.
 struct Drawn {
@@ -168,6 +169,8 @@ fn generalisation_scenes_are_estimated_or_flagged() {
         "scene", "res", "noise", "tilt°", "px", "pos mm", "size%", "rot°", "conf", "stereo", "struct"
     );
     let (mut ok, mut false_found, mut found, mut wrong, mut outranks) = (0, Vec::new(), 0, 0, 0);
+    // Scenes within the bounds, and scenes, clean and noisy.
+    let mut by_noise = [[0usize; 2]; 2];
     let n = (0..40).filter(|&i| chosen(i)).count();
     for i in (0..40).filter(|&i| chosen(i)) {
         let d = draw(i);
@@ -189,6 +192,9 @@ fn generalisation_scenes_are_estimated_or_flagged() {
         let good = pos <= 10.0 && size <= 0.05 && rot <= 5.0;
         let far = pos > 20.0 || rot > 10.0;
         ok += good as usize;
+        let set = &mut by_noise[(d.noise > 0.0) as usize];
+        set[0] += good as usize;
+        set[1] += 1;
         found += v.found as usize;
         wrong += far as usize;
         if far && v.found {
@@ -209,11 +215,23 @@ fn generalisation_scenes_are_estimated_or_flagged() {
         );
     }
     let share = ok as f64 / n as f64;
+    let [clean, noisy] = by_noise.map(|[k, m]| k as f64 / m.max(1) as f64);
+    let reached = if clean >= 0.95 && noisy >= 0.85 {
+        "reached"
+    } else {
+        "not reached"
+    };
     println!(
-        "within 10 mm, 5 %, 5°: {ok} of {n} ({:.0} %; target 95 % clean, 85 % noisy: not reached); \
-         reported found: {found}; more than 20 mm or 10° off: {wrong}, of them reported found: {}; \
+        "within 10 mm, 5 %, 5°: {ok} of {n} ({:.0} %); clean {} of {} ({:.0} %), noisy {} of {} ({:.0} %): \
+         target 95 % clean, 85 % noisy {reached}; reported found: {found}; more than 20 mm or 10° off: {wrong}, of them reported found: {}; \
          the truth outranks the result on {outranks}; {:.0} s",
         share * 100.0,
+        by_noise[0][0],
+        by_noise[0][1],
+        clean * 100.0,
+        by_noise[1][0],
+        by_noise[1][1],
+        noisy * 100.0,
         false_found.len(),
         start.elapsed().as_secs_f64()
     );
@@ -253,4 +271,35 @@ fn the_tilted_scan_sees_a_card_the_facing_scan_misses() {
     assert!(nearest > 40.0, "a facing region came {nearest:.0} mm near");
     let tilted = distances(35.0);
     assert!(tilted[0] < 20.0, "the best tilted region is {:.0} mm off", tilted[0]);
+}
+
+/// The left image's ridge at a steep tilt: the truth's plane turned 3° about the
+/// camera's x or y axis, the card's corners where the left eye's rays through the true
+/// ones meet it (they move 2–4 px in the image on a 90–140 px card: the colour fitness
+/// barely sees it), 2–8 % off in size and 3–4° in rotation. The sweep of the plane
+/// between the two eyes brings tilt and size back from every side.
+#[test]
+fn the_plane_of_a_steeply_tilted_card_is_settled_by_the_two_eyes() {
+    for i in [11, 23] {
+        let d = draw(i);
+        let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
+        let (rig, box_px) = (&prepared.levels[0].rig, prepared.scorer.box_px);
+        let left_from_hand = &d.config.left_from_hand;
+        let truth = PoseSize::from_pose(&d.hand_from_model, d.size_mm, d.model.l_p, d.model.b_p);
+        let tilt = 3f64.to_radians();
+        for off in [[tilt, 0.0], [-tilt, 0.0], [0.0, tilt], [0.0, -tilt]] {
+            let moved = plane::replaced(&truth, left_from_hand, box_px, 1.0, off);
+            let two = plane::TwoEyes {
+                points: &prepared.points[0],
+                rig,
+                eyes: prepared.brightness.eyes(0),
+                left_from_hand,
+            };
+            let settled = plane::settle(&two, &moved, box_px);
+            let [before, after] = [moved, settled].map(|p| errors(&d, &p));
+            let what = format!("scene {i}, turned {off:.3?}: {before:.3?} -> {after:.3?} (mm, size, °)");
+            assert!(before[2] > 2.5, "{what}");
+            assert!(after[0] < 1.0 && after[1] < 0.015 && after[2] < 1.0, "{what}");
+        }
+    }
 }

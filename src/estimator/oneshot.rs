@@ -11,7 +11,7 @@ use crate::estimator::ga::{self, Bounds, Outcome, Problem};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::Mode;
-use crate::estimator::verify::texture;
+use crate::estimator::verify::{plane, texture};
 use crate::estimator::verify::{BrightnessPyramid, TextureTerm, Verdict};
 use crate::vision::frame::{coarse_levels, StereoImages};
 use crate::vision::lookup::LevelLookup;
@@ -91,6 +91,31 @@ impl Prepared {
             weight,
             below_level: levels - 1,
         })
+    }
+
+    /// `outcome`'s pose moved to the plane on which the two eyes see the same
+    /// brightness, its left image held ([`plane::settle`]), and its fitness read again on
+    /// `problem`: the tilt and size that the colour fitness leaves to chance at steep tilts.
+    /// A plane outside the search space is not taken, nor one that the verdict does not
+    /// call found where it called the search's result found (an occluder in front of
+    /// the card can draw the sweep towards its own depth).
+    fn settle_plane(&self, problem: &Problem, outcome: &mut Outcome) {
+        let two = plane::TwoEyes {
+            points: &self.points[0],
+            rig: &self.levels[0].rig,
+            eyes: self.brightness.eyes(0),
+            left_from_hand: &self.scorer.left_from_hand,
+        };
+        let best = plane::settle(&two, &outcome.best, self.scorer.box_px);
+        if !problem.bounds.contains(&best) {
+            return;
+        }
+        let verdict = self.verdict(&best);
+        if verdict.found || !outcome.verdict.found {
+            outcome.fitness = problem.evaluate(0, &problem.bounds.encode(&best));
+            outcome.best = best;
+            outcome.verdict = verdict;
+        }
     }
 
     /// The verdict on `best`: texture terms on every model point at full resolution,
@@ -235,6 +260,7 @@ pub fn search_observed(
         }
         let mut outcome = ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress);
         outcome.verdict = prepared.verdict(&outcome.best);
+        prepared.settle_plane(&problem, &mut outcome);
         let found = outcome.verdict.found;
         best = Some(better(best, outcome));
         if found {

@@ -90,6 +90,16 @@ impl Bounds {
 
     /// Inverse of [`Bounds::decode`] (clamped into the search space).
     pub fn encode(&self, p: &PoseSize) -> Genes {
+        self.unclamped(p).map(|g| g.clamp(0.0, 1.0))
+    }
+
+    /// Whether `p` lies in the search space (its genes in 0–1).
+    pub fn contains(&self, p: &PoseSize) -> bool {
+        self.unclamped(p).iter().all(|g| (0.0..=1.0).contains(g))
+    }
+
+    /// The genes of `p`, outside 0–1 where it is outside the search space.
+    fn unclamped(&self, p: &PoseSize) -> Genes {
         let vals = [
             p.position.x,
             p.position.y,
@@ -106,8 +116,7 @@ impl Bounds {
                 (vals[i] / self.lo[i]).ln() / (self.hi[i] / self.lo[i]).ln()
             } else {
                 (vals[i] - self.lo[i]) / (self.hi[i] - self.lo[i])
-            }
-            .clamp(0.0, 1.0);
+            };
         }
         g
     }

@@ -183,7 +183,7 @@ impl Texture {
 
 /// Running sums of a normalised cross-correlation.
 #[derive(Debug, Clone, Copy, Default)]
-struct Ncc {
+pub(super) struct Ncc {
     /// Summed noise variances of the two signals' samples (for the correction).
     noise_a: f64,
     noise_b: f64,
@@ -200,7 +200,7 @@ const FLAT_STD: f64 = 2.0;
 
 impl Ncc {
     #[inline]
-    fn add(&mut self, a: f32, b: f32) {
+    pub(super) fn add(&mut self, a: f32, b: f32) {
         let (a, b) = (a as f64, b as f64);
         self.n += 1.0;
         self.sa += a;
@@ -210,7 +210,7 @@ impl Ncc {
         self.sab += a * b;
     }
 
-    fn value(&self) -> f64 {
+    pub(super) fn value(&self) -> f64 {
         self.corrected(false)
     }
 
@@ -252,34 +252,58 @@ pub fn score(
     denoised: bool,
     partial_view: bool,
 ) -> Texture {
-    let left_from_model = left_from_hand * c.hand_from_model();
-    let left = PointProjector::new(&rig.left, &left_from_model, c);
-    let right = PointProjector::new(&rig.right, &(rig.right_from_left * left_from_model), c);
-    let inside = EdgeMargin::new(points, &left);
     let (mut stereo, mut model_left, mut model_right) = (Ncc::default(), Ncc::default(), Ncc::default());
-    let mut px = [[0.0f32; BATCH]; 4];
-    for (xs, ys, ms) in batches(points) {
-        let [ul, vl, ur, vr] = &mut px;
-        project_batch(&left, xs, ys, ul, vl);
-        project_batch(&right, xs, ys, ur, vr);
-        for (i, ((&x, &y), &m)) in xs.iter().zip(ys).zip(ms).enumerate() {
-            let (Some((a, da, na)), Some((b, db, nb))) = (eyes[0].sample(ul[i], vl[i]), eyes[1].sample(ur[i], vr[i]))
-            else {
-                continue;
-            };
-            if inside.holds(x, y) {
+    both_eyes(
+        points,
+        rig,
+        eyes,
+        left_from_hand,
+        c,
+        |inside, m, (a, da, na), (b, db, nb)| {
+            if inside {
                 stereo.add(da, db);
                 stereo.noise_a += na as f64;
                 stereo.noise_b += nb as f64;
             }
             model_left.add(m as f32, a);
             model_right.add(m as f32, b);
-        }
-    }
+        },
+    );
     let seen = seen_weight(model_left.n / points.inner_v.len().max(1) as f64, partial_view);
     Texture {
         stereo: stereo.corrected(denoised) * seen,
         structure: (model_left.value() + model_right.value()) / 2.0 * seen,
+    }
+}
+
+/// One eye's sample at a point: brightness, detail and the detail's noise variance.
+pub(super) type Sample = (f32, f32, f32);
+
+/// Both eyes' samples at the inner points of `points` that both see for candidate `c`:
+/// `visit(inside, m, left, right)`, `inside` when the point is at least [`EDGE_PX`]
+/// inside the model's edge in the left image, `m` the photo's brightness there.
+pub(super) fn both_eyes(
+    points: &PointSet,
+    rig: &StereoRig,
+    eyes: [&Brightness; 2],
+    left_from_hand: &Isometry3<f64>,
+    c: &PoseSize,
+    mut visit: impl FnMut(bool, u8, Sample, Sample),
+) {
+    let left_from_model = left_from_hand * c.hand_from_model();
+    let left = PointProjector::new(&rig.left, &left_from_model, c);
+    let right = PointProjector::new(&rig.right, &(rig.right_from_left * left_from_model), c);
+    let inside = EdgeMargin::new(points, &left);
+    let mut px = [[0.0f32; BATCH]; 4];
+    for (xs, ys, ms) in batches(points) {
+        let [ul, vl, ur, vr] = &mut px;
+        project_batch(&left, xs, ys, ul, vl);
+        project_batch(&right, xs, ys, ur, vr);
+        for (i, ((&x, &y), &m)) in xs.iter().zip(ys).zip(ms).enumerate() {
+            if let (Some(a), Some(b)) = (eyes[0].sample(ul[i], vl[i]), eyes[1].sample(ur[i], vr[i])) {
+                visit(inside.holds(x, y), m, a, b);
+            }
+        }
     }
 }
 
