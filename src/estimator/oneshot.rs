@@ -93,6 +93,17 @@ impl Prepared {
         })
     }
 
+    /// What the plane sweep reads on this frame: every model point, both eyes at full
+    /// resolution ([`plane::settle`]).
+    pub fn two_eyes(&self) -> plane::TwoEyes<'_> {
+        plane::TwoEyes {
+            points: &self.points[0],
+            rig: &self.levels[0].rig,
+            eyes: self.brightness.eyes(0),
+            left_from_hand: &self.scorer.left_from_hand,
+        }
+    }
+
     /// `outcome`'s pose moved to the plane on which the two eyes see the same
     /// brightness, its left image held ([`plane::settle`]), and its fitness read again on
     /// `problem`: the tilt and size that the colour fitness leaves to chance at steep tilts.
@@ -100,13 +111,7 @@ impl Prepared {
     /// call found where it called the search's result found (an occluder in front of
     /// the card can draw the sweep towards its own depth).
     fn settle_plane(&self, problem: &Problem, outcome: &mut Outcome) {
-        let two = plane::TwoEyes {
-            points: &self.points[0],
-            rig: &self.levels[0].rig,
-            eyes: self.brightness.eyes(0),
-            left_from_hand: &self.scorer.left_from_hand,
-        };
-        let best = plane::settle(&two, &outcome.best, self.scorer.box_px);
+        let best = plane::settle(&self.two_eyes(), &outcome.best, self.scorer.box_px);
         if !problem.bounds.contains(&best) {
             return;
         }
