@@ -1,8 +1,10 @@
 //! Scenes nobody tuned for: 40 random scenes, each a card of one test photo in front of
 //! a *different* real photograph as the background wall (no collage), anywhere in the
 //! field of view inside the default search space, tilted up to 45°, HD and FHD (small
-//! cards), a third of them noisy, one random hand-eye transform each, estimated with
-//! the default configuration. The table and the figures print with `--nocapture`.
+//! cards), one random hand-eye transform each, estimated with the default
+//! configuration. About a third are noisy the way a bad frame is: pixel noise, blur
+//! (defocus or motion), a colour cast and brightness change, and a bar in front of
+//! 15–25 % of the card. The table and the figures print with `--nocapture`.
 //!
 //! Beside the accuracy suite's hand-made scenes, these are drawn at random: a second
 //! check of the verdict on poses nobody chose. Asserted: no pose more than 20 mm or 10°
@@ -25,6 +27,7 @@ use rand::{Rng, SeedableRng};
 
 use crate::common::data;
 use crate::scenes::photo;
+use crate::suite::edit;
 
 /// The photos and their boxes (as `photopose model --box`).
 const CARDS: [(&str, [i64; 4]); 4] = [
@@ -34,15 +37,18 @@ const CARDS: [(&str, [i64; 4]); 4] = [
     ("rocket.jpg", [150, 60, 340, 300]),
 ];
 
-/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 40 of 40; the
-/// floor is 2 scenes below (a guard against regressions, not the target).
-const SUCCESS_FLOOR: f64 = 0.94;
+/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 30 of 40 (27 of
+/// 27 clean, 3 of 13 noisy: the targets are not reached); the floor is 2 scenes below
+/// (a guard against regressions, not the target).
+const SUCCESS_FLOOR: f64 = 0.70;
 
 /// One random scene's parameters and its rendering.
 struct Drawn {
     name: String,
     fhd: bool,
     noise: f64,
+    /// What else degrades a noisy scene (blur, colour, the bar), for the table.
+    degraded: String,
     tilt_deg: f64,
     extent_px: f64,
     size_mm: [f64; 2],
@@ -66,8 +72,15 @@ fn position(rng: &mut StdRng, rig: &photopose::camera::StereoRig, z: f64) -> Vec
 }
 
 /// Scene `i`: card, background photo, resolution, pose, noise and hand-eye drawn from
-/// a generator seeded with `i`.
+/// a generator seeded with `i`; a noisy one also blurred, recoloured and partly hidden
+/// ([`Degradation`]).
 fn draw(i: u64) -> Drawn {
+    draw_degraded(i, true)
+}
+
+/// Scene `i` as [`draw`] draws it; `degraded` false leaves a noisy scene with its pixel
+/// noise only.
+fn draw_degraded(i: u64, degraded: bool) -> Drawn {
     let mut rng = StdRng::seed_from_u64(7000 + i);
     let card = rng.random_range(0..CARDS.len());
     let wall = (card + rng.random_range(1..CARDS.len())) % CARDS.len();
@@ -104,7 +117,7 @@ fn draw(i: u64) -> Drawn {
     let full = photo(name);
     let [x, y, w, h] = bbox;
     let size_mm = [length, length * aspect];
-    let scene = Scene {
+    let mut scene = Scene {
         card: Card {
             texture: image::imageops::crop_imm(&full, x as u32, y as u32, w as u32, h as u32).to_image(),
             hand_from_model,
@@ -120,7 +133,18 @@ fn draw(i: u64) -> Drawn {
         occluder: None,
         seed: i,
     };
+    let mut degradation = (degraded && noise > 0.0).then(|| Degradation::draw(i));
+    if let Some(d) = &mut degradation {
+        scene.occluder = d.occluder.take().and_then(|(fraction, fill)| {
+            let left_from_model = config.left_from_hand * hand_from_model;
+            render::Occluder::covering(&left_from_model, size_mm, fraction, fill, i)
+        });
+    }
     let sbs = render::render(&rig, &config.left_from_hand, &scene);
+    let mut images = StereoImages::from_sbs(&sbs, Path::new("scene")).unwrap();
+    if let Some(d) = &degradation {
+        d.apply(&mut images);
+    }
     let model = PhotoModel::build(
         &full,
         &data(format!("photos/{name}")),
@@ -133,13 +157,82 @@ fn draw(i: u64) -> Drawn {
         name: format!("{i:>2} {name} on {}", CARDS[wall].0),
         fhd,
         noise,
+        degraded: degradation.map_or(String::new(), |d| d.label),
         tilt_deg: tilt.to_degrees(),
         extent_px: length / z * rig.left.fx,
         size_mm,
         hand_from_model,
         config,
         model,
-        images: StereoImages::from_sbs(&sbs, Path::new("scene")).unwrap(),
+        images,
+    }
+}
+
+/// What degrades a noisy scene beyond its pixel noise, drawn from its own generator
+/// (the clean scenes and every scene's pose stay as they were drawn before).
+struct Degradation {
+    /// Gaussian blur sigma (defocus), or a motion stroke's length and direction, px.
+    blur: Blur,
+    /// Per-channel gains on the whole frame: a colour cast times a brightness change.
+    gains: [f64; 3],
+    /// The share of the card a bar in front of it covers, and the bar's look.
+    occluder: Option<(f64, render::OccluderFill)>,
+    label: String,
+}
+
+enum Blur {
+    Defocus(f32),
+    Motion(f64, [f64; 2]),
+}
+
+/// Bar colours: grey, the target photos' reds, browns and blues, skin, green.
+const BARS: [[u8; 3]; 6] = [
+    [128, 128, 128],
+    [200, 40, 30],
+    [150, 90, 50],
+    [40, 80, 200],
+    [225, 170, 140],
+    [60, 140, 60],
+];
+
+impl Degradation {
+    fn draw(i: u64) -> Self {
+        let mut rng = StdRng::seed_from_u64(9000 + i);
+        let blur = if rng.random_bool(0.5) {
+            Blur::Defocus(rng.random_range(0.6..1.5))
+        } else {
+            let a = rng.random_range(0.0..std::f64::consts::PI);
+            Blur::Motion(rng.random_range(1.0..3.0), [a.cos(), a.sin()])
+        };
+        let light = rng.random_range(0.7..1.3);
+        let gains = [0, 1, 2].map(|_| light * rng.random_range(0.88..1.12));
+        let fraction = rng.random_range(0.15..0.25);
+        let colour = BARS[rng.random_range(0..BARS.len())];
+        let label = match blur {
+            Blur::Defocus(s) => format!("defocus {s:.1}"),
+            Blur::Motion(l, _) => format!("motion {l:.1}"),
+        } + &format!(
+            ", gains {:.2}/{:.2}/{:.2}, bar {:.0} % {colour:?}",
+            gains[0],
+            gains[1],
+            gains[2],
+            fraction * 100.0
+        );
+        Self {
+            blur,
+            gains,
+            occluder: Some((fraction, render::OccluderFill::Solid(colour))),
+            label,
+        }
+    }
+
+    /// The frame edits (after rendering): blur, then the colour.
+    fn apply(&self, images: &mut StereoImages) {
+        match self.blur {
+            Blur::Defocus(sigma) => edit::defocus(images, sigma),
+            Blur::Motion(length, dir) => edit::motion(images, length, dir),
+        }
+        edit::white_balance(images, self.gains);
     }
 }
 
@@ -200,7 +293,7 @@ fn generalisation_scenes_are_estimated_or_flagged() {
             false_found.push(d.name.clone());
         }
         println!(
-            "{:<32} {:>3} {:>5.1} {:>5.1} {:>5.0} | {pos:>7.1} {:>6.1} {rot:>6.1} | {:>5.2} {:>5.2} {:>5.2} {:<5} | {at_result:>5.2} {at_truth:>5.2}",
+            "{:<32} {:>3} {:>5.1} {:>5.1} {:>5.0} | {pos:>7.1} {:>6.1} {rot:>6.1} | {:>5.2} {:>5.2} {:>5.2} {:<5} | {at_result:>5.2} {at_truth:>5.2} {}",
             d.name,
             if d.fhd { "FHD" } else { "HD" },
             d.noise,
@@ -210,7 +303,8 @@ fn generalisation_scenes_are_estimated_or_flagged() {
             v.confidence,
             v.texture.stereo,
             v.texture.structure,
-            if v.found { "yes" } else { "no" }
+            if v.found { "yes" } else { "no" },
+            d.degraded
         );
     }
     let ok = by_noise[0][0] + by_noise[1][0];
@@ -277,11 +371,13 @@ fn the_tilted_scan_sees_a_card_the_facing_scan_misses() {
 /// camera's x or y axis, the card's corners where the left eye's rays through the true
 /// ones meet it (they move 2–4 px in the image on a 90–140 px card: the colour fitness
 /// barely sees it), 2–8 % off in size and 3–4° in rotation. The sweep of the plane
-/// between the two eyes brings tilt and size back from every side.
+/// between the two eyes brings tilt and size back from every side. (Scene 23 with its
+/// pixel noise only: a bar in front of the card draws the sweep towards the bar's depth,
+/// a limit the docs state.)
 #[test]
 fn the_plane_of_a_steeply_tilted_card_is_settled_by_the_two_eyes() {
     for i in [11, 23] {
-        let d = draw(i);
+        let d = draw_degraded(i, false);
         let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
         let (two, box_px) = (prepared.two_eyes(), prepared.scorer.box_px);
         let left_from_hand = &d.config.left_from_hand;

@@ -13,7 +13,7 @@
 //! success shares stay at their floors; the other tests check that the scenes are what
 //! they claim.
 
-mod edit;
+pub mod edit;
 mod report;
 pub mod table;
 
