@@ -37,10 +37,10 @@ const CARDS: [(&str, [i64; 4]); 4] = [
     ("rocket.jpg", [150, 60, 340, 300]),
 ];
 
-/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 30 of 40 (27 of
-/// 27 clean, 3 of 13 noisy: the targets are not reached); the floor is 2 scenes below
+/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 36 of 40 (27 of
+/// 27 clean, 9 of 13 noisy: the targets are not reached); the floor is 2 scenes below
 /// (a guard against regressions, not the target).
-const SUCCESS_FLOOR: f64 = 0.70;
+const SUCCESS_FLOOR: f64 = 0.85;
 
 /// One random scene's parameters and its rendering.
 struct Drawn {
@@ -391,5 +391,43 @@ fn the_plane_of_a_steeply_tilted_card_is_settled_by_the_two_eyes() {
             assert!(before[2] > 2.5, "{what}");
             assert!(after[0] < 1.0 && after[1] < 0.015 && after[2] < 1.0, "{what}");
         }
+    }
+}
+
+/// A model shrunk onto part of its card lines the photo up with the image only once it
+/// is grown back ([`hidden::uncovered`]). The truth of two degraded scenes (a bar over
+/// 16–24 % of the card, blur, a colour cast) cut by a quarter on the side the bar hides
+/// grows back to within 2 mm and 2 %. Cut on another side, with the bar still inside
+/// the model, the smooth rocket photo of scene 8 grows into the wall (140–200 mm off):
+/// the verdict must not call any such pose found. The truth of two clean scenes is left
+/// as it is.
+#[test]
+fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
+    use photopose::estimator::verify::hidden;
+    let prepared_truth = |i: u64| {
+        let d = draw(i);
+        let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
+        let truth = PoseSize::from_pose(&d.hand_from_model, d.size_mm, d.model.l_p, d.model.b_p);
+        (d, prepared, truth)
+    };
+    for i in [8, 23] {
+        let (d, prepared, truth) = prepared_truth(i);
+        let box_px = prepared.scorer.box_px;
+        for (length, side) in [(false, -0.5), (true, -0.5), (true, 0.5), (false, 0.5)] {
+            let cut = truth.resized(box_px, length, 0.75, side);
+            let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px);
+            let [before, after] = [cut, grown].map(|p| errors(&d, &p));
+            let what = format!("scene {i}, side {length} {side}: {before:.3?} -> {after:.3?} (mm, size, °)");
+            if !length && side < 0.0 {
+                assert!(after[0] < 2.0 && after[1] < 0.02, "the bar's side, {what}");
+            }
+            let far = after[0] > 20.0 || after[2] > 10.0;
+            assert!(!(far && prepared.verdict(&grown).found), "found: {what}");
+        }
+    }
+    for i in [5, 24] {
+        let (_, prepared, truth) = prepared_truth(i);
+        let kept = hidden::uncovered(&prepared.two_eyes(), &truth, prepared.scorer.box_px);
+        assert_eq!(kept, truth, "scene {i}");
     }
 }

@@ -2,6 +2,7 @@
 //! wrong tilt cannot fake ([`texture`]), the frame's brightness pyramid they read, and
 //! the verdict (found or not, with a confidence) reported with every estimate.
 
+pub mod hidden;
 pub mod plane;
 pub mod texture;
 
