@@ -58,6 +58,13 @@ struct Drawn {
     images: StereoImages,
 }
 
+impl Drawn {
+    /// The card's true pose and size.
+    fn truth(&self) -> PoseSize {
+        PoseSize::from_pose(&self.hand_from_model, self.size_mm, self.model.l_p, self.model.b_p)
+    }
+}
+
 /// A card position along a random line of sight at depth `z`, inside the default
 /// search space (hand frame = left camera frame here before the hand-eye transform).
 fn position(rng: &mut StdRng, rig: &photopose::camera::StereoRig, z: f64) -> Vector3<f64> {
@@ -133,12 +140,9 @@ fn draw_degraded(i: u64, degraded: bool) -> Drawn {
         occluder: None,
         seed: i,
     };
-    let mut degradation = (degraded && noise > 0.0).then(|| Degradation::draw(i));
-    if let Some(d) = &mut degradation {
-        scene.occluder = d.occluder.take().and_then(|(fraction, fill)| {
-            let left_from_model = config.left_from_hand * hand_from_model;
-            render::Occluder::covering(&left_from_model, size_mm, fraction, fill, i)
-        });
+    let degradation = (degraded && noise > 0.0).then(|| Degradation::draw(i));
+    if let Some(d) = &degradation {
+        scene.occluder = d.occluder(&(config.left_from_hand * hand_from_model), size_mm, i);
     }
     let sbs = render::render(&rig, &config.left_from_hand, &scene);
     let mut images = StereoImages::from_sbs(&sbs, Path::new("scene")).unwrap();
@@ -157,7 +161,7 @@ fn draw_degraded(i: u64, degraded: bool) -> Drawn {
         name: format!("{i:>2} {name} on {}", CARDS[wall].0),
         fhd,
         noise,
-        degraded: degradation.map_or(String::new(), |d| d.label),
+        degraded: degradation.as_ref().map_or(String::new(), Degradation::label),
         tilt_deg: tilt.to_degrees(),
         extent_px: length / z * rig.left.fx,
         size_mm,
@@ -175,9 +179,8 @@ struct Degradation {
     blur: Blur,
     /// Per-channel gains on the whole frame: a colour cast times a brightness change.
     gains: [f64; 3],
-    /// The share of the card a bar in front of it covers, and the bar's look.
-    occluder: Option<(f64, render::OccluderFill)>,
-    label: String,
+    /// The share of the card a bar in front of it covers, and the bar's colour.
+    bar: (f64, [u8; 3]),
 }
 
 enum Blur {
@@ -208,22 +211,37 @@ impl Degradation {
         let gains = [0, 1, 2].map(|_| light * rng.random_range(0.88..1.12));
         let fraction = rng.random_range(0.15..0.25);
         let colour = BARS[rng.random_range(0..BARS.len())];
-        let label = match blur {
-            Blur::Defocus(s) => format!("defocus {s:.1}"),
-            Blur::Motion(l, _) => format!("motion {l:.1}"),
-        } + &format!(
-            ", gains {:.2}/{:.2}/{:.2}, bar {:.0} % {colour:?}",
-            gains[0],
-            gains[1],
-            gains[2],
-            fraction * 100.0
-        );
         Self {
             blur,
             gains,
-            occluder: Some((fraction, render::OccluderFill::Solid(colour))),
-            label,
+            bar: (fraction, colour),
         }
+    }
+
+    /// The bar in front of the card posed `left_from_model` (`size_mm`; `seed` picks its side).
+    fn occluder(&self, left_from_model: &Isometry3<f64>, size_mm: [f64; 2], seed: u64) -> Option<render::Occluder> {
+        let (fraction, colour) = self.bar;
+        render::Occluder::covering(
+            left_from_model,
+            size_mm,
+            fraction,
+            render::OccluderFill::Solid(colour),
+            seed,
+        )
+    }
+
+    /// What the table prints.
+    fn label(&self) -> String {
+        let blur = match self.blur {
+            Blur::Defocus(s) => format!("defocus {s:.1}"),
+            Blur::Motion(l, _) => format!("motion {l:.1}"),
+        };
+        let [r, g, b] = self.gains;
+        let (fraction, colour) = self.bar;
+        format!(
+            "{blur}, gains {r:.2}/{g:.2}/{b:.2}, bar {:.0} % {colour:?}",
+            fraction * 100.0
+        )
     }
 
     /// The frame edits (after rendering): blur, then the colour.
@@ -277,7 +295,7 @@ fn generalisation_scenes_are_estimated_or_flagged() {
         )
         .unwrap();
         let [pos, size, rot] = errors(&d, &out.best);
-        let truth = PoseSize::from_pose(&d.hand_from_model, d.size_mm, d.model.l_p, d.model.b_p);
+        let truth = d.truth();
         let score = |p: &PoseSize| oneshot::score_at(&d.model, &d.images, &d.config, p).unwrap().score;
         let (at_result, at_truth) = (score(&out.best), score(&truth));
         outranks += (at_truth > at_result) as usize;
@@ -381,7 +399,7 @@ fn the_plane_of_a_steeply_tilted_card_is_settled_by_the_two_eyes() {
         let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
         let (two, box_px) = (prepared.two_eyes(), prepared.scorer.box_px);
         let left_from_hand = &d.config.left_from_hand;
-        let truth = PoseSize::from_pose(&d.hand_from_model, d.size_mm, d.model.l_p, d.model.b_p);
+        let truth = d.truth();
         let tilt = 3f64.to_radians();
         for off in [[tilt, 0.0], [-tilt, 0.0], [0.0, tilt], [0.0, -tilt]] {
             let moved = plane::replaced(&truth, left_from_hand, box_px, 1.0, off);
@@ -407,7 +425,7 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
     let prepared_truth = |i: u64| {
         let d = draw(i);
         let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
-        let truth = PoseSize::from_pose(&d.hand_from_model, d.size_mm, d.model.l_p, d.model.b_p);
+        let truth = d.truth();
         (d, prepared, truth)
     };
     for i in [8, 23] {

@@ -63,10 +63,9 @@ fn edges_climbed(two: &TwoEyes, shown: &PoseSize, mut q: PoseSize, box_px: [f64;
     let mut at = alignment(two, shown, &q, box_px);
     let mut step = 0.04;
     while step >= 0.005 {
-        let resized = SIDES
+        let moves = SIDES
             .iter()
             .flat_map(|&(length, side)| [1.0 + step, 1.0 - step].map(|f| q.resized(box_px, length, f, side)));
-        let moves = resized;
         let best = moves
             .map(|m| (alignment(two, shown, &m, box_px), m))
             .max_by(|x, y| x.0.total_cmp(&y.0))
@@ -87,6 +86,7 @@ fn best_growth(two: &TwoEyes, shown: &PoseSize, q: &PoseSize, box_px: [f64; 2], 
     let coarse = GROWTH.iter().map(|&f| (f, at(f))).max_by(|x, y| x.1.total_cmp(&y.1));
     let (f0, a0) = coarse.expect("growth factors");
     (-5..=5)
+        .filter(|&i| i != 0)
         .map(|i| f0 * (1.0 + 0.01 * i as f64))
         .map(|f| (f, at(f)))
         .chain(std::iter::once((f0, a0)))
@@ -101,7 +101,7 @@ const MARGIN: f64 = 0.05;
 /// The correlation of the photo's brightness with the left eye's brightness at the
 /// inner points of `q` that lie on `shown`'s card (inside its rectangle on the plane
 /// the two share).
-pub fn alignment(two: &TwoEyes, shown: &PoseSize, q: &PoseSize, box_px: [f64; 2]) -> f64 {
+fn alignment(two: &TwoEyes, shown: &PoseSize, q: &PoseSize, box_px: [f64; 2]) -> f64 {
     let [l, b] = shown.size_mm(box_px[0], box_px[1]);
     let s = shown.rotation().inverse() * (q.position - shown.position);
     let (alpha, beta) = (q.alpha, q.beta());
