@@ -37,10 +37,10 @@ const CARDS: [(&str, [i64; 4]); 4] = [
     ("rocket.jpg", [150, 60, 340, 300]),
 ];
 
-/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 36 of 40 (27 of
-/// 27 clean, 9 of 13 noisy: the targets are not reached); the floor is 2 scenes below
-/// (a guard against regressions, not the target).
-const SUCCESS_FLOOR: f64 = 0.85;
+/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 38 of 40 (27 of
+/// 27 clean, 11 of 13 noisy: 84.6 %, the noisy target is not reached); the floor is 2
+/// scenes below (a guard against regressions, not the target).
+const SUCCESS_FLOOR: f64 = 0.9;
 
 /// One random scene's parameters and its rendering.
 struct Drawn {
@@ -334,7 +334,7 @@ fn generalisation_scenes_are_estimated_or_flagged() {
         "not reached"
     };
     println!(
-        "within 10 mm, 5 %, 5°: {ok} of {n} ({:.0} %); clean {} of {} ({:.0} %), noisy {} of {} ({:.0} %): \
+        "within 10 mm, 5 %, 5°: {ok} of {n} ({:.1} %); clean {} of {} ({:.1} %), noisy {} of {} ({:.1} %): \
          target 95 % clean, 85 % noisy {reached}; reported found: {found}; more than 20 mm or 10° off: {wrong}, of them reported found: {}; \
          the truth outranks the result on {outranks}; {:.0} s",
         share * 100.0,
@@ -389,27 +389,56 @@ fn the_tilted_scan_sees_a_card_the_facing_scan_misses() {
 /// camera's x or y axis, the card's corners where the left eye's rays through the true
 /// ones meet it (they move 2–4 px in the image on a 90–140 px card: the colour fitness
 /// barely sees it), 2–8 % off in size and 3–4° in rotation. The sweep of the plane
-/// between the two eyes brings tilt and size back from every side. (Scene 23 with its
-/// pixel noise only: a bar in front of the card draws the sweep towards the bar's depth,
-/// a limit the docs state.)
+/// between the two eyes brings tilt and size back from every side (scene 23 with its
+/// pixel noise only; a partly hidden card is the next test's).
 #[test]
 fn the_plane_of_a_steeply_tilted_card_is_settled_by_the_two_eyes() {
     for i in [11, 23] {
-        let d = draw_degraded(i, false);
-        let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
-        let (two, box_px) = (prepared.two_eyes(), prepared.scorer.box_px);
-        let left_from_hand = &d.config.left_from_hand;
-        let truth = d.truth();
-        let tilt = 3f64.to_radians();
-        for off in [[tilt, 0.0], [-tilt, 0.0], [0.0, tilt], [0.0, -tilt]] {
-            let moved = plane::replaced(&truth, left_from_hand, box_px, 1.0, off);
-            let settled = plane::settle(&two, &moved, box_px);
-            let [before, after] = [moved, settled].map(|p| errors(&d, &p));
-            let what = format!("scene {i}, turned {off:.3?}: {before:.3?} -> {after:.3?} (mm, size, °)");
+        for (what, [before, after]) in turned_and_settled(&draw_degraded(i, false)) {
             assert!(before[2] > 2.5, "{what}");
             assert!(after[0] < 1.0 && after[1] < 0.015 && after[2] < 1.0, "{what}");
         }
     }
+}
+
+/// The same with a bar in front of a fifth of the card, blur and a colour cast (random
+/// scenes 1 and 30: 198 px tilted 40°, 156 px tilted 7°), to within 2 mm, 2 % and 2°.
+/// The bar shows each eye a different surface at any plane; the sweep also leaves
+/// those points out ([`plane::TwoEyes::trimmed_agreement`]) instead of only following
+/// the bar's depth (scene 30 then ends 7° off). Not every such card settles: scene 16
+/// (98 px tilted 10°) turned 3° about x ends 3.4° off, a limit the docs state.
+#[test]
+fn the_plane_of_a_partly_hidden_card_is_settled_by_the_two_eyes() {
+    for i in [1, 30] {
+        for (what, [before, after]) in turned_and_settled(&draw(i)) {
+            assert!(before[2] > 2.0, "{what}");
+            assert!(after[0] < 2.0 && after[1] < 0.02 && after[2] < 2.0, "{what}");
+        }
+    }
+}
+
+/// Scene `d`'s truth turned 3° either way about the left camera's x and y axes, its
+/// left image held ([`plane::replaced`]), and settled ([`plane::settle`]): a description
+/// and the errors before and after.
+fn turned_and_settled(d: &Drawn) -> Vec<(String, [[f64; 3]; 2])> {
+    let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
+    let (two, box_px) = (prepared.two_eyes(), prepared.scorer.box_px);
+    let left_from_hand = &d.config.left_from_hand;
+    let truth = d.truth();
+    let tilt = 3f64.to_radians();
+    [[tilt, 0.0], [-tilt, 0.0], [0.0, tilt], [0.0, -tilt]]
+        .into_iter()
+        .map(|off| {
+            let moved = plane::replaced(&truth, left_from_hand, box_px, 1.0, off);
+            let settled = plane::settle(&two, &moved, box_px);
+            let errors = [moved, settled].map(|p| errors(d, &p));
+            let what = format!(
+                "{}, turned {off:.3?}: {:.3?} -> {:.3?} (mm, size, °)",
+                d.name, errors[0], errors[1]
+            );
+            (what, errors)
+        })
+        .collect()
 }
 
 /// A model shrunk onto part of its card lines the photo up with the image only once it
