@@ -102,7 +102,10 @@ const OUTLIER: f32 = 3.0;
 
 /// The correlation of the pairs whose standardised values are not far apart ([`OUTLIER`]).
 fn trimmed_ncc(pairs: &[(f32, f32)]) -> f64 {
-    let n = pairs.len().max(1) as f32;
+    if pairs.is_empty() {
+        return 0.0;
+    }
+    let n = pairs.len() as f32;
     let standard = |f: fn(&(f32, f32)) -> f32| {
         let mean = pairs.iter().map(f).sum::<f32>() / n;
         let var = pairs.iter().map(|p| (f(p) - mean).powi(2)).sum::<f32>() / n;
@@ -111,12 +114,8 @@ fn trimmed_ncc(pairs: &[(f32, f32)]) -> f64 {
     let ((ma, sa), (mb, sb)) = (standard(|p| p.0), standard(|p| p.1));
     let gap = |p: &(f32, f32)| ((p.0 - ma) / sa - (p.1 - mb) / sb).abs();
     let mut gaps: Vec<f32> = pairs.iter().map(gap).collect();
-    let Some((_, &mut median, _)) = (!gaps.is_empty()).then(|| {
-        let mid = gaps.len() / 2;
-        gaps.select_nth_unstable_by(mid, f32::total_cmp)
-    }) else {
-        return 0.0;
-    };
+    let mid = gaps.len() / 2;
+    let median = *gaps.select_nth_unstable_by(mid, f32::total_cmp).1;
     let mut ncc = Ncc::default();
     for p in pairs.iter().filter(|p| gap(p) <= OUTLIER * median) {
         ncc.add(p.0, p.1);
@@ -151,24 +150,26 @@ const SWEEPS: usize = 3;
 /// of a wrong tilt: there the points far from the axis, which show the tilt, differ
 /// most and are left out.)
 pub fn settle(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
-    let every_point = sweeps(two, c, box_px, &|p| two.agreement(p));
-    if two.agreement(&every_point) >= ONE_SURFACE {
+    let (every_point, agreement) = sweeps(two, c, box_px, &|p| two.agreement(p));
+    if agreement >= ONE_SURFACE {
         return every_point;
     }
-    let trimmed = sweeps(two, c, box_px, &|p| two.trimmed_agreement(p));
-    if two.trimmed_agreement(&trimmed) >= two.trimmed_agreement(&every_point) {
+    let (trimmed, trimmed_agreement) = sweeps(two, c, box_px, &|p| two.trimmed_agreement(p));
+    if trimmed_agreement >= two.trimmed_agreement(&every_point) {
         trimmed
     } else {
         every_point
     }
 }
 
-/// [`sweep`]s from `c` on `agreement` while they move it by more than 0.2 mm or 0.1°.
-fn sweeps(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2], agreement: &impl Fn(&PoseSize) -> f64) -> PoseSize {
-    let mut at = *c;
+/// [`sweep`]s from `c` on `agreement` while they move it by more than 0.2 mm or 0.1°:
+/// the pose and its agreement.
+fn sweeps(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2], agreement: &impl Fn(&PoseSize) -> f64) -> (PoseSize, f64) {
+    let mut at = (*c, 0.0);
     for _ in 0..SWEEPS {
-        let next = sweep(two, &at, box_px, agreement);
-        let moved = (next.position - at.position).norm() > 0.2 || next.rotation().angle_to(&at.rotation()) > 0.002;
+        let next = sweep(two, &at.0, box_px, agreement);
+        let moved =
+            (next.0.position - at.0.position).norm() > 0.2 || next.0.rotation().angle_to(&at.0.rotation()) > 0.002;
         at = next;
         if !moved {
             break;
@@ -178,8 +179,9 @@ fn sweeps(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2], agreement: &impl Fn(&Po
 }
 
 /// One sweep from `c`: per round, each of depth and the two tilts is tried a step either
-/// way and set to the peak of the parabola through the three (within a step).
-fn sweep(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2], agreement: &impl Fn(&PoseSize) -> f64) -> PoseSize {
+/// way and set to the peak of the parabola through the three (within a step). The pose
+/// and its agreement.
+fn sweep(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2], agreement: &impl Fn(&PoseSize) -> f64) -> (PoseSize, f64) {
     let at = |p: &[f64; 3]| replaced(c, two.left_from_hand, box_px, p[0], [p[1], p[2]]);
     let score = |p: &[f64; 3]| agreement(&at(p));
     let mut p = START;
@@ -212,7 +214,7 @@ fn sweep(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2], agreement: &impl Fn(&Pos
         }
         step = step.map(|s| s / 2.0);
     }
-    at(&p)
+    (at(&p), best)
 }
 
 #[cfg(test)]
