@@ -10,6 +10,8 @@
 //! check of the verdict on poses nobody chose. Asserted: no pose more than 20 mm or 10°
 //! off is reported found, and the share within 10 mm, 5 % and 5° stays at or above its
 //! floor (a guard against regressions; whether the targets are reached is printed).
+//! `GEN_DRAW=2` draws 40 other scenes (40–79) the same way: a fresh check for a change
+//! tuned on the first draw (the floor is asserted on the first only).
 
 use std::path::Path;
 
@@ -254,6 +256,17 @@ impl Degradation {
     }
 }
 
+/// The scenes drawn: 0–39, or `GEN_DRAW=k` for the k-th draw of 40 (`GEN_DRAW=2` is
+/// scenes 40–79: a fresh set for a change tuned on the first).
+fn drawn() -> std::ops::Range<u64> {
+    let k: u64 = std::env::var("GEN_DRAW")
+        .ok()
+        .and_then(|k| k.parse().ok())
+        .unwrap_or(1)
+        .max(1);
+    (k - 1) * 40..k * 40
+}
+
 /// Whether scene `i` runs: all, or those listed in `GEN_SCENES` (`GEN_SCENES=8,11`;
 /// then the floor is not asserted).
 fn chosen(i: u64) -> bool {
@@ -282,8 +295,8 @@ fn generalisation_scenes_are_estimated_or_flagged() {
     let (mut false_found, mut found, mut wrong, mut outranks) = (Vec::new(), 0, 0, 0);
     // Scenes within the bounds, and scenes, clean and noisy.
     let mut by_noise = [[0usize; 2]; 2];
-    let n = (0..40).filter(|&i| chosen(i)).count();
-    for i in (0..40).filter(|&i| chosen(i)) {
+    let n = drawn().filter(|&i| chosen(i)).count();
+    for i in drawn().filter(|&i| chosen(i)) {
         let d = draw(i);
         let out = oneshot::run(
             &d.model,
@@ -349,7 +362,7 @@ fn generalisation_scenes_are_estimated_or_flagged() {
     );
     assert!(false_found.is_empty(), "wrong poses reported found: {false_found:?}");
     assert!(
-        share >= SUCCESS_FLOOR || n < 40,
+        share >= SUCCESS_FLOOR || n < 40 || drawn().start > 0,
         "{ok} of {n} within 10 mm, 5 %, 5°: below the floor of {:.0} %",
         SUCCESS_FLOOR * 100.0
     );
@@ -446,8 +459,8 @@ fn turned_and_settled(d: &Drawn) -> Vec<(String, [[f64; 3]; 2])> {
 /// 16–24 % of the card, blur, a colour cast) cut by a quarter on the side the bar hides
 /// grows back to within 2 mm and 2 %. Cut on another side, with the bar still inside
 /// the model, the smooth rocket photo of scene 8 grows into the wall (140–200 mm off):
-/// the verdict must not call any such pose found. The truth of two clean scenes is left
-/// as it is.
+/// the verdict must not call any such pose found. A truth cut by 30 % about its centre
+/// grows back too (scene 43). The truth of two clean scenes is left as it is.
 #[test]
 fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
     use photopose::estimator::verify::hidden;
@@ -471,6 +484,20 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
             let far = after[0] > 20.0 || after[2] > 10.0;
             assert!(!(far && prepared.verdict(&grown).found), "found: {what}");
         }
+    }
+    // A smooth photo under a bar (the rocket, sky on both sides): the search shrank the
+    // model about its centre, 33 % short (scene 43 of the second draw). Scene 64's cut
+    // grows 166 mm off along one side: not found.
+    for i in [43, 64] {
+        let (d, prepared, truth) = prepared_truth(i);
+        let box_px = prepared.scorer.box_px;
+        let cut = truth.resized(box_px, true, 0.7, 0.0);
+        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px);
+        let [before, after] = [cut, grown].map(|p| errors(&d, &p));
+        let what = format!("scene {i}, about the centre: {before:.3?} -> {after:.3?} (mm, size, °)");
+        assert!(i != 43 || (after[0] < 2.0 && after[1] < 0.02), "{what}");
+        let far = after[0] > 20.0 || after[2] > 10.0;
+        assert!(!(far && prepared.verdict(&grown).found), "found: {what}");
     }
     for i in [5, 24] {
         let (_, prepared, truth) = prepared_truth(i);

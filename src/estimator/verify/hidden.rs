@@ -4,8 +4,9 @@
 //! squeezes the photo's texture: the photo lines up with the visible part of the image
 //! only at the card's true extent. So each side of a result is grown in turn, and the
 //! photo's brightness is correlated with the left eye's on the part the result covered
-//! only; a side whose growth lines the photo up clearly better is grown. (The right eye
-//! sees a nearer occluder's edge shifted into that part, so it is not read.)
+//! only; a side whose growth lines the photo up clearly better is grown, or both sides
+//! of an axis about the centre. (The right eye sees a nearer occluder's edge shifted
+//! into that part, so it is not read.)
 
 use super::plane::TwoEyes;
 use super::texture::{both_eyes, Ncc};
@@ -24,14 +25,26 @@ const MIN_GAIN: f64 = 0.025;
 /// edge at −½ or +½ moved (the other held).
 const SIDES: [(bool, f64); 4] = [(true, -0.5), (true, 0.5), (false, -0.5), (false, 0.5)];
 
-/// `c` with up to two of its sides grown where the photo's texture lines up better with
-/// the part of the image that `c` covers (`box_px`: the photo box, for sizes).
+/// What may grow: each side, or an axis about the centre (a photo smooth on both sides,
+/// like a rocket in the sky, lets the search shrink the model about its centre).
+const GROWTHS: [(bool, f64); 6] = [
+    (true, -0.5),
+    (true, 0.5),
+    (false, -0.5),
+    (false, 0.5),
+    (true, 0.0),
+    (false, 0.0),
+];
+
+/// `c` with up to two of its sides or axes ([`GROWTHS`]) grown where the photo's
+/// texture lines up better with the part of the image that `c` covers (`box_px`: the
+/// photo box, for sizes).
 pub fn uncovered(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
     let mut best = *c;
     let mut at = alignment(two, c, c, box_px);
-    let mut grown = [false; 4];
+    let mut grown = [false; GROWTHS.len()];
     for _ in 0..2 {
-        let tries = SIDES
+        let tries = GROWTHS
             .iter()
             .enumerate()
             .filter(|(k, _)| !grown[*k])
@@ -45,7 +58,7 @@ pub fn uncovered(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
         if f < MIN_GROWTH || a < at + MIN_GAIN {
             break;
         }
-        let (length, side) = SIDES[k];
+        let (length, side) = GROWTHS[k];
         best = best.resized(box_px, length, f, side);
         at = a;
         grown[k] = true;
