@@ -1,0 +1,315 @@
+//! The estimator's work on a stream of side-by-side frames: each frame is read while
+//! the caller holds it (only the regions around the predicted pose, on a tracking
+//! frame), then searched by the [`Tracker`] after the caller released it.
+
+use image::RgbImage;
+use nalgebra::Isometry3;
+
+use super::{Estimate, Plan, TrackState, Tracker};
+use crate::camera::calibration::CalibrationError;
+use crate::camera::StereoRig;
+use crate::config::Config;
+use crate::estimator::exposure::Exposure;
+use crate::estimator::fitness::{PointSet, Scorer};
+use crate::estimator::ga::{Bounds, Genes, Problem};
+use crate::estimator::model::PhotoModel;
+use crate::estimator::oneshot::{scorer_for, Prepared};
+use crate::estimator::pose::PoseSize;
+use crate::estimator::settings::Mode;
+use crate::estimator::verify::texture::{self, Brightness};
+use crate::estimator::verify::tilt_resolved;
+use crate::vision::frame::Region;
+use crate::vision::lookup::{LevelLookup, SbsBytes};
+
+/// Pixels of each eye (left, right) worth preparing for a model at `pose`: the
+/// projection of its `extent_px` (photo pixels: the box and its outer strip), grown on
+/// every side by `grow` times its size and at least `min_px` (the motion until the next
+/// frame and the population's spread). The whole image where it reaches behind a camera.
+pub fn search_windows(
+    rig: &StereoRig,
+    left_from_hand: &Isometry3<f64>,
+    pose: &PoseSize,
+    extent_px: [f64; 2],
+    grow: f64,
+    min_px: f64,
+) -> [Region; 2] {
+    let left_from_model = left_from_hand * pose.hand_from_model();
+    let size = pose.size_mm(extent_px[0], extent_px[1]);
+    let (w, h) = (rig.width as usize, rig.height as usize);
+    let pad = |extent: f64| (grow * extent).max(min_px);
+    [
+        Region::covering(&rig.left, [(left_from_model, size)], w, h, pad),
+        Region::covering(&rig.right, [(rig.right_from_left * left_from_model, size)], w, h, pad),
+    ]
+}
+
+/// The texture terms (stereo, structure) a tracking frame in doubt needs at its pose to
+/// be `tracking`: a relocation the verdict rejected may have landed on a region of the
+/// card's colours at another depth, which the colour fitness cannot tell from the card.
+const DOUBT_TEXTURE: [f64; 2] = [0.7, 0.75];
+
+/// Growth of the prepared window around the predicted model (with its outer strip), as a
+/// share of its size, and its least margin in pixels: the population's spread and the
+/// motion the prediction missed (a few pixels per frame at 60 fps).
+const WINDOW_GROW: f64 = 0.1;
+const WINDOW_MIN_PX: f64 = 24.0;
+
+/// Why a frame could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    /// The payload is not a whole side-by-side frame of the size its header gives.
+    #[error("payload of {len} bytes is smaller than its header says ({width}x{height} per eye, stride {stride})")]
+    Incomplete {
+        /// Bytes received.
+        len: usize,
+        /// Width of one eye, pixels.
+        width: usize,
+        /// Height, pixels.
+        height: usize,
+        /// Bytes from one row to the next.
+        stride: usize,
+    },
+    /// The calibration has no rig for the frame's size.
+    #[error(transparent)]
+    Calibration(#[from] CalibrationError),
+}
+
+impl FrameError {
+    fn incomplete(frame: &SbsBytes) -> Self {
+        Self::Incomplete {
+            len: frame.bytes.len(),
+            width: frame.width,
+            height: frame.height,
+            stride: frame.row_stride,
+        }
+    }
+}
+
+/// What the next [`StreamTracker::step`] works on.
+enum Ready {
+    /// Lookup regions around the prediction were refilled from the frame.
+    Regions,
+    /// The whole frame, for a one-shot acquisition, the relocation after it or a
+    /// recovery, with its left image (an acquisition's light is the [`Exposure`]'s
+    /// reference).
+    Whole(Box<Prepared>, RgbImage),
+}
+
+/// The estimator's work on a stream of frames: each frame is first read
+/// ([`StreamTracker::prepare`], while the caller holds it), then searched
+/// ([`StreamTracker::step`], after the caller released it). Tracking frames convert only
+/// the regions around the predicted pose, into lookup images allocated once.
+pub struct StreamTracker {
+    config: Config,
+    model: PhotoModel,
+    scorer: Scorer,
+    bounds: Bounds,
+    /// The model's points for tracking frames (scored at full resolution).
+    points: [PointSet; 1],
+    /// The model's extent with its outer strip, photo pixels.
+    extent_px: [f64; 2],
+    regions: Option<LevelLookup>,
+    tracker: Tracker,
+    /// The gains that bring each frame back to the light of the acquisition's frame.
+    exposure: Exposure,
+    /// Both eyes' brightness in the regions of a tracking frame read in doubt.
+    eyes: Option<[Brightness; 2]>,
+    ready: Option<Ready>,
+}
+
+/// The tracker, its acquisitions included, ranks by `F` itself, with eq. 17's
+/// similarity factor ([`Scorer::rank_by_sum`] off). Ranked by the sum as the one-shot
+/// estimate is, the tracking sequences got worse: after whole-frame searches on
+/// motion-blurred frames of a red card on a red wall, a pose 200–590 mm off was called
+/// tracking.
+///
+/// Its points off the image count as mismatches ([`Scorer::partial_view`] off): its
+/// frames are read in regions around the prediction, and a point beyond a region, on
+/// the image but not read, must not go free.
+fn as_tracker_scores(scorer: &mut Scorer) {
+    scorer.rank_by_sum = false;
+    scorer.partial_view = false;
+}
+
+impl StreamTracker {
+    /// A tracker of `model` with the configuration's tracking settings and seed, waiting
+    /// for the first frame to acquire the object on.
+    pub fn new(model: PhotoModel, config: Config) -> Self {
+        let mut scorer = scorer_for(&model, &config);
+        as_tracker_scores(&mut scorer);
+        let bounds = Bounds::new(&config.search, &model, config.ga.mode == Mode::Robust);
+        let points = [PointSet::from_model(
+            &model,
+            &scorer.params,
+            config.tracking.point_stride,
+        )];
+        let tracker = Tracker::new(&config, [model.l_p, model.b_p], config.ga.seed);
+        let strip = 2.0 * model.outer_width_px;
+        let exposure = Exposure::new(&points[0]);
+        Self {
+            exposure,
+            extent_px: [model.l_p + strip, model.b_p + strip],
+            config,
+            model,
+            scorer,
+            bounds,
+            points,
+            regions: None,
+            tracker,
+            eyes: None,
+            ready: None,
+        }
+    }
+
+    /// Whether `frame` can be read: whole, and of a size the calibration has a rig for.
+    pub fn check(&self, frame: &SbsBytes) -> Result<StereoRig, FrameError> {
+        if !frame.is_complete() {
+            return Err(FrameError::incomplete(frame));
+        }
+        Ok(self
+            .config
+            .calibration
+            .rig_for_image(frame.width as u32, frame.height as u32)?)
+    }
+
+    /// Reads what the next step needs from a side-by-side RGB8 or YUYV frame.
+    pub fn prepare(&mut self, frame: &SbsBytes) -> Result<(), FrameError> {
+        self.ready = None;
+        let rig = self.check(frame)?;
+        let ready = match self.tracker.prediction() {
+            Some(genes) => {
+                let regions = match &mut self.regions {
+                    Some(r) if r.rig == rig => r,
+                    slot => slot.insert(LevelLookup::regions(&rig)),
+                };
+                let predicted = self.bounds.decode(&genes);
+                let left_from_hand = &self.scorer.left_from_hand;
+                let rois = search_windows(
+                    &rig,
+                    left_from_hand,
+                    &predicted,
+                    self.extent_px,
+                    WINDOW_GROW,
+                    WINDOW_MIN_PX,
+                );
+                // The light is read on the card while it is tracked, where the
+                // prediction shows it; otherwise the last gains hold.
+                let gains = if self.tracker.is_tracked() {
+                    self.exposure.update(frame, &rig, left_from_hand, &predicted)
+                } else {
+                    self.exposure.gains()
+                };
+                regions.refill(frame, &rois, &self.scorer.texel_rule().with_gains(gains));
+                self.eyes = self
+                    .tracker
+                    .doubted()
+                    .then(|| [0, 1].map(|eye| Brightness::of_region(frame, eye, &rois[eye])));
+                Ready::Regions
+            }
+            None => {
+                // A fresh acquisition sees the frame as it is; a relocation or recovery
+                // in the light of the tracking frames.
+                if self.tracker.plan() == Plan::Acquire {
+                    self.exposure.reset();
+                }
+                let mut images = frame.to_images().ok_or_else(|| FrameError::incomplete(frame))?;
+                images.apply_gains(self.exposure.gains());
+                let mut prepared = Prepared::new(&self.model, &images, &self.config)?;
+                as_tracker_scores(&mut prepared.scorer);
+                Ready::Whole(Box::new(prepared), images.left)
+            }
+        };
+        self.ready = Some(ready);
+        Ok(())
+    }
+
+    /// Searches the prepared frame; `None` when no frame was prepared.
+    pub fn step(&mut self) -> Option<Estimate> {
+        Some(match self.ready.take()? {
+            Ready::Regions => {
+                let regions = std::slice::from_ref(self.regions.as_ref()?);
+                let threads = self.config.tracking.threads;
+                let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
+                // Read only on a frame in doubt (see `prepare`).
+                let eyes = self.eyes.take();
+                let mut estimate = self.tracker.step(&problem);
+                if let Some(eyes) = eyes.filter(|_| estimate.state == TrackState::Tracking) {
+                    if !self.texture_holds(&problem, &eyes, &estimate.best) {
+                        estimate.state = TrackState::Searching;
+                        self.tracker.doubt();
+                    }
+                }
+                // A pose whose tilt the stereo pair cannot resolve (a small card far
+                // away) is followed but not called tracking: its orientation is a guess.
+                let s = &self.scorer;
+                if !tilt_resolved(&estimate.best, s.box_px, &regions[0].rig, &s.left_from_hand) {
+                    estimate.state = estimate.state.not_tracking();
+                }
+                estimate
+            }
+            Ready::Whole(prepared, left) => {
+                let plan = self.tracker.plan();
+                let (scorer, points, bounds) = (&self.scorer, &self.points[0], &self.bounds);
+                let tracking_f = |g: &Genes| scorer.evaluate(points, &prepared.levels[0], &bounds.decode(g)).f;
+                let mut estimate = self.tracker.step_whole(&prepared.problem(&self.config), &tracking_f);
+                // The one-shot verdict: a pose it does not call found is not tracked. A
+                // rejected acquisition is searched afresh (after recoveries, once an
+                // object was tracked); a doubtful relocation goes on being tracked,
+                // searching more widely, until its fitness says found or it is lost; a
+                // failed recovery leaves the object lost.
+                let found = prepared.verdict(&estimate.best).found;
+                match (found, plan) {
+                    (true, _) if estimate.state == TrackState::Tracking => self.tracker.confirm(),
+                    (true, _) => {}
+                    (false, Plan::Acquire) => self.tracker.reject_acquisition(),
+                    (false, Plan::Recover) => self.tracker.recovery_failed(),
+                    (false, _) => self.tracker.doubt(),
+                }
+                if found && plan == Plan::Acquire {
+                    let rig = &prepared.levels[0].rig;
+                    self.exposure
+                        .set_reference(&left, rig, &self.scorer.left_from_hand, &estimate.best);
+                }
+                if !found {
+                    estimate.state = match plan {
+                        Plan::Recover => TrackState::Lost,
+                        _ => TrackState::Searching,
+                    };
+                }
+                estimate
+            }
+        })
+    }
+
+    /// Whether the two eyes' brightness `[left, right]` agrees at `pose` on a tracking
+    /// frame read in doubt ([`DOUBT_TEXTURE`]).
+    fn texture_holds(&self, problem: &Problem, [left, right]: &[Brightness; 2], pose: &PoseSize) -> bool {
+        let rig = &problem.levels[0].rig;
+        let t = texture::score(
+            &self.points[0],
+            rig,
+            [left, right],
+            &self.scorer.left_from_hand,
+            pose,
+            true,
+            false,
+        );
+        t.stereo >= DOUBT_TEXTURE[0] && t.structure >= DOUBT_TEXTURE[1]
+    }
+
+    /// Leaves this frame out: the next step gives no estimate.
+    pub fn skip(&mut self) {
+        self.ready = None;
+    }
+
+    /// Whether the next frame will go to a (one-shot) acquisition or a relocation: a
+    /// search of the whole frame.
+    pub fn will_acquire(&self) -> bool {
+        self.tracker.prediction().is_none()
+    }
+
+    /// The photo-model being tracked.
+    pub fn model(&self) -> &PhotoModel {
+        &self.model
+    }
+}
