@@ -150,8 +150,9 @@ fn replay_plays_a_recording_with_its_truth() {
         .enumerate()
         .map(|(i, line)| match (i, line.split_once(',')) {
             (1.., Some((id, rest))) => {
-                expected.push(1000 + id.parse::<u64>().expect("frame id"));
-                format!("{},{rest}", expected[expected.len() - 1])
+                let id = 1000 + id.parse::<u64>().expect("frame id");
+                expected.push(id);
+                format!("{id},{rest}")
             }
             _ => line.to_string(),
         })

@@ -21,12 +21,10 @@ const GROWTH: [f64; 12] = [1.05, 1.1, 1.15, 1.2, 1.25, 1.3, 1.4, 1.5, 1.6, 1.7, 
 const MIN_GROWTH: f64 = 1.02;
 const MIN_GAIN: f64 = 0.025;
 
-/// The sides as [`PoseSize::resized`] takes them: along the length or the width, the
-/// edge at −½ or +½ moved (the other held).
-const SIDES: [(bool, f64); 4] = [(true, -0.5), (true, 0.5), (false, -0.5), (false, 0.5)];
-
-/// What may grow: each side, or an axis about the centre (a photo smooth on both sides,
-/// like a rocket in the sky, lets the search shrink the model about its centre).
+/// What may grow, as [`PoseSize::resized`] takes it: along the length or the width,
+/// the edge at −½ or +½ moved (the other held), then each axis about its centre (a photo
+/// smooth on both sides, like a rocket in the sky, lets the search shrink the model
+/// about its centre).
 const GROWTHS: [(bool, f64); 6] = [
     (true, -0.5),
     (true, 0.5),
@@ -35,6 +33,9 @@ const GROWTHS: [(bool, f64); 6] = [
     (true, 0.0),
     (false, 0.0),
 ];
+
+/// The four sides: the growths that move one edge.
+const SIDES: &[(bool, f64)] = GROWTHS.split_at(4).0;
 
 /// `c` with up to two of its sides or axes ([`GROWTHS`]) grown where the photo's
 /// texture lines up better with the part of the image that `c` covers (`box_px`: the
