@@ -10,8 +10,8 @@
 //! check of the verdict on poses nobody chose. Asserted: no pose more than 20 mm or 10°
 //! off is reported found, and the share within 10 mm, 5 % and 5° stays at or above its
 //! floor (a guard against regressions; whether the targets are reached is printed).
-//! `GEN_DRAW=2` draws 40 other scenes (40–79) the same way: a fresh check for a change
-//! tuned on the first draw (the floor is asserted on the first only).
+//! `GEN_DRAW=k` draws the k-th 40 scenes (`GEN_DRAW=2`: 40–79) the same way: a fresh
+//! check for a change tuned on the first draw (the floor is asserted on the first only).
 
 use std::path::Path;
 
@@ -39,10 +39,11 @@ const CARDS: [(&str, [i64; 4]); 4] = [
     ("rocket.jpg", [150, 60, 340, 300]),
 ];
 
-/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 38 of 40 (27 of
-/// 27 clean, 11 of 13 noisy: 84.6 %, the noisy target is not reached); the floor is 2
-/// scenes below (a guard against regressions, not the target).
-const SUCCESS_FLOOR: f64 = 0.9;
+/// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 39 of 40 (27 of
+/// 27 clean, 12 of 13 noisy: 92.3 %; over four draws the noisy share is 83.3 %, the
+/// target is not reached); the floor is 2 scenes below (a guard against regressions,
+/// not the target).
+const SUCCESS_FLOOR: f64 = 0.925;
 
 /// One random scene's parameters and its rendering.
 struct Drawn {
@@ -504,4 +505,49 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
         let kept = hidden::uncovered(&prepared.two_eyes(), &truth, prepared.scorer.box_px);
         assert_eq!(kept, truth, "scene {i}");
     }
+}
+
+/// A search can end on a local peak of the full resolution that the half resolution's
+/// wider peak leads out of: on clean scene 109 of the third draw (a cat card tilted 40°
+/// on a dark helmet) it returned a model 14.6 mm off, 42 % short and turned 24°, scoring
+/// 3.8 against the truth's 8.2. Such poses (the truth cut to 58 % of its length, turned
+/// 24° about each of 8 axes in its plane, moved 13 mm), polished again from the half
+/// resolution, reach the card and are found; the truth itself stays where it is.
+#[test]
+fn a_result_on_a_local_peak_is_polished_again() {
+    let d = draw(109);
+    let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
+    let problem = prepared.problem(&d.config);
+    let truth = d.truth();
+    let outcome = |best: PoseSize| photopose::estimator::ga::Outcome {
+        best,
+        fitness: problem.evaluate(0, &problem.bounds.encode(&best)),
+        generations: 0,
+        searches: 1,
+        evaluations: 0,
+        snapshots: Vec::new(),
+        verdict: prepared.verdict(&best),
+    };
+    for a in 0..8 {
+        let angle = std::f64::consts::TAU * a as f64 / 8.0;
+        let axis = Vector3::new(angle.cos(), angle.sin(), 0.0);
+        let mut off = truth
+            .resized(prepared.scorer.box_px, true, 0.58, 0.0)
+            .turned(axis, 24f64.to_radians());
+        off.position += truth.rotation() * Vector3::new(8.0, -10.0, 0.0);
+        let mut polished = outcome(off);
+        assert!(!polished.verdict.found, "axis {a}: the start is found");
+        prepared.repolish(&problem, &mut polished, 1);
+        let [before, after] = [off, polished.best].map(|p| errors(&d, &p));
+        let what = format!("axis {a}: {before:.3?} -> {after:.3?} (mm, size, °)");
+        assert!(after[0] < 2.0 && after[1] < 0.05 && after[2] < 3.0, "{what}");
+        assert!(polished.verdict.found, "not found: {what}");
+    }
+    let mut kept = outcome(truth);
+    prepared.repolish(&problem, &mut kept, 1);
+    let moved = errors(&d, &kept.best);
+    assert!(
+        moved[0] < 1.0 && moved[1] < 0.02 && moved[2] < 2.0,
+        "the truth moved: {moved:.3?}"
+    );
 }
