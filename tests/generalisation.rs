@@ -66,6 +66,11 @@ impl Drawn {
     fn truth(&self) -> PoseSize {
         PoseSize::from_pose(&self.hand_from_model, self.size_mm, self.model.l_p, self.model.b_p)
     }
+
+    /// The frame prepared for the search with the scene's configuration.
+    fn prepared(&self) -> oneshot::Prepared {
+        oneshot::Prepared::new(&self.model, &self.images, &self.config).expect("calibrated")
+    }
 }
 
 /// A card position along a random line of sight at depth `z`, inside the default
@@ -435,7 +440,7 @@ fn the_plane_of_a_partly_hidden_card_is_settled_by_the_two_eyes() {
 /// left image held ([`plane::replaced`]), and settled ([`plane::settle`]): a description
 /// and the errors before and after.
 fn turned_and_settled(d: &Drawn) -> Vec<(String, [[f64; 3]; 2])> {
-    let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
+    let prepared = d.prepared();
     let (two, box_px) = (prepared.two_eyes(), prepared.scorer.box_px);
     let left_from_hand = &d.config.left_from_hand;
     let truth = d.truth();
@@ -467,8 +472,7 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
     use photopose::estimator::verify::hidden;
     let prepared_truth = |i: u64| {
         let d = draw(i);
-        let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
-        let truth = d.truth();
+        let (prepared, truth) = (d.prepared(), d.truth());
         (d, prepared, truth)
     };
     for i in [8, 23] {
@@ -516,7 +520,7 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
 #[test]
 fn a_result_on_a_local_peak_is_polished_again() {
     let d = draw(109);
-    let prepared = oneshot::Prepared::new(&d.model, &d.images, &d.config).unwrap();
+    let prepared = d.prepared();
     let problem = prepared.problem(&d.config);
     let truth = d.truth();
     let outcome = |best: PoseSize| photopose::estimator::ga::Outcome {
