@@ -210,7 +210,7 @@ struct Report {
     poses: usize,
     dropped_frames: u64,
     skipped_while_acquiring: u64,
-    /// Poses that (re)acquired the object, left out of the latency figures.
+    /// Poses of an object being (re)acquired, left out of the latency figures.
     acquisitions: usize,
     acquisition_max_ms: f64,
     transport_p50_us: f64,
@@ -233,7 +233,7 @@ impl Report {
         match self.acquisitions {
             0 => "no acquisition in this window".into(),
             n => format!(
-                "{n} acquisitions (up to {:.0} ms each, {} frames skipped meanwhile; left out below)",
+                "{n} poses while (re)acquiring (up to {:.0} ms each, {} frames skipped meanwhile; left out below)",
                 self.acquisition_max_ms, self.skipped_while_acquiring
             ),
         }
@@ -267,11 +267,12 @@ impl Observed {
         ns as f64 * 1e-6
     }
 
-    /// True for a pose that (re)acquired the object: it ran more generations than the
-    /// tracking poses (their median), and took many frame periods.
+    /// True for a pose of an object being (re)acquired: published while its search ran
+    /// in the background (no generations), or one that searched the whole frame itself
+    /// (more generations than the tracking poses' median, many frame periods).
     fn acquisition(&self, p: &Seen) -> bool {
         let generations = Samples::new(self.poses.iter().map(|p| p.pose.generations as f64)).median();
-        p.pose.generations as f64 > generations
+        p.pose.generations == 0 || p.pose.generations as f64 > generations
     }
 
     /// The tracking poses (acquisitions left out).

@@ -104,6 +104,33 @@ pub fn climb(problem: &Problem, level: usize, start: Genes, budget: usize) -> (G
     best
 }
 
+/// `start` (genes and fitness on `level`) turned by `step` radians about its own x or y
+/// axis, again and again (at most `most` times each way) while that raises its score:
+/// the turns of a card about an axis in its plane, larger than the climb's first steps.
+pub fn turn_while_better(
+    problem: &Problem,
+    level: usize,
+    start: (Genes, Fitness),
+    step: f64,
+    most: usize,
+) -> (Genes, Fitness) {
+    let mut best = start;
+    for axis in [Vector3::x(), Vector3::y()] {
+        for sign in [1.0, -1.0] {
+            for _ in 0..most {
+                let turned = problem.bounds.decode(&best.0).turned(axis, sign * step);
+                let genes = problem.bounds.encode(&turned);
+                let fitness = problem.evaluate(level, &genes);
+                if fitness.score <= best.1.score {
+                    break;
+                }
+                best = (genes, fitness);
+            }
+        }
+    }
+    best
+}
+
 /// The best of `start` and its copies resized over a wide range (×0.7 to ×1.4 in
 /// steps of 3 %): both sides together about the centre, or one side about its centre
 /// or either edge. The score has side peaks in size that the climb's small steps do

@@ -114,6 +114,16 @@ impl LivePopulation {
         }
     }
 
+    /// Replaces the worst individual by `genes`, which scored `fit`.
+    pub fn inject(&mut self, genes: Genes, fit: Fitness) {
+        let scores = self.pop.fit.iter().map(|f| f.score);
+        let worst = scores.enumerate().min_by(|a, b| a.1.total_cmp(&b.1)).map(|(i, _)| i);
+        if let Some(w) = worst {
+            self.pop.genes[w] = genes;
+            self.pop.fit[w] = fit;
+        }
+    }
+
     /// The best individual and its fitness (of equal scores the last, as tracking has
     /// always chosen); `None` while the population is empty.
     pub fn best(&self) -> Option<(Genes, Fitness)> {

@@ -297,6 +297,11 @@ impl StreamTracker {
         t.stereo >= DOUBT_TEXTURE[0] && t.structure >= DOUBT_TEXTURE[1]
     }
 
+    /// The next frame directly follows the last one searched ([`Tracker::follow_on`]).
+    pub fn follow_on(&mut self) {
+        self.tracker.follow_on();
+    }
+
     /// Leaves this frame out: the next step gives no estimate.
     pub fn skip(&mut self) {
         self.ready = None;
