@@ -85,13 +85,14 @@ pub fn climb(problem: &Problem, level: usize, start: Genes, budget: usize) -> (G
     let mut best = (start, problem.evaluate(level, &start));
     let mut step = FIRST_STEP;
     let mut used = 1;
-    let mut fit = vec![Fitness::default(); 2 * MOVES.len()];
+    // On the stack: tracking frames climb too, and they must not allocate.
+    let mut fit = [Fitness::default(); 2 * MOVES.len()];
     while step >= LAST_STEP && used + fit.len() <= budget {
         let p = problem.bounds.decode(&best.0);
-        let around: Vec<Genes> = MOVES
-            .iter()
-            .flat_map(|&m| [step, -step].map(|s| problem.bounds.encode(&moved(problem, &p, m, s))))
-            .collect();
+        let around: [Genes; 2 * MOVES.len()] = std::array::from_fn(|k| {
+            let s = if k % 2 == 0 { step } else { -step };
+            problem.bounds.encode(&moved(problem, &p, MOVES[k / 2], s))
+        });
         problem.evaluate_batch(level, &around, &mut fit);
         used += around.len();
         let i = best_index(&fit, Ties::First);
