@@ -55,7 +55,7 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
     let (wake, waker) = (ipc.wake(FRAMES_SERVICE)?, ipc.waker(POSES_SERVICE)?);
     let start = Instant::now();
     let mut count = Counts::default();
-    let mut last: Vec<PoseMsg> = vec![PoseMsg::default(); names.len()];
+    let mut last = vec![PoseMsg::none(Status::Searching); names.len()];
     let mut report = Instant::now();
     // Woken by the camera; the timeout only bounds how late a stop request is noticed.
     while ipc.wait_for(&wake, Duration::from_millis(50)) {
@@ -92,7 +92,7 @@ pub fn run(args: &EstimatorArgs) -> Result<()> {
 }
 
 /// The pose of an object being acquired in the background on frame `frame_id`: its
-/// last pose (none yet: zero) as `searching`, no generations run on this frame.
+/// last pose (none yet: [`PoseMsg::none`]) as `searching`, no generations run on this frame.
 fn acquiring(last: &PoseMsg, frame_id: u64, capture_time_ns: u64) -> PoseMsg {
     PoseMsg {
         frame_id,

@@ -270,16 +270,22 @@ impl PoseMsg {
         }
         if !self.is_sound() {
             *self = PoseMsg {
-                orientation_wxyz: [1.0, 0.0, 0.0, 0.0],
-                status: Status::Lost as u32,
-                ..PoseMsg {
-                    frame_id: self.frame_id,
-                    capture_time_ns: self.capture_time_ns,
-                    publish_time_ns: self.publish_time_ns,
-                    generations: self.generations,
-                    ..PoseMsg::default()
-                }
+                frame_id: self.frame_id,
+                capture_time_ns: self.capture_time_ns,
+                publish_time_ns: self.publish_time_ns,
+                generations: self.generations,
+                ..PoseMsg::none(Status::Lost)
             };
+        }
+    }
+
+    /// No pose known, as `status`: the origin with the identity rotation, zero size and
+    /// fitness 0, a sound pose that must not be acted on.
+    pub fn none(status: Status) -> Self {
+        PoseMsg {
+            orientation_wxyz: [1.0, 0.0, 0.0, 0.0],
+            status: status as u32,
+            ..PoseMsg::default()
         }
     }
 }

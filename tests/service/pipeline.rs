@@ -47,6 +47,13 @@ fn capture_and_estimator_processes_track_a_moving_card() {
         waiting.iter().all(|p| p.status == Status::Searching as u32),
         "only searching while acquiring"
     );
+    // Before any estimate, the pose is none (identity rotation at the origin): sound,
+    // so clients and the viewer read it, and held by its status.
+    assert!(
+        waiting.iter().all(|p| p.is_sound()),
+        "unsound: {:?}",
+        waiting.iter().find(|p| !p.is_sound())
+    );
     let acquisition_s = (tracked[0].publish_time_ns - first.capture_time_ns) as f64 * 1e-9;
     // Tracking error against the truth of the same frame, after acquisition.
     let errors = Samples::new(tracked.iter().map(|p| position_error(p, &w.truths[&p.frame_id])));
