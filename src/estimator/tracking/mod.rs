@@ -376,13 +376,13 @@ impl Tracker {
     /// truth was higher.
     fn climb_best(&mut self, problem: &Problem) {
         let Some(start) = self.pop.best() else { return };
+        // The turns return `start` unless they found better: either way the best now.
         let turned = compass::turn_while_better(problem, 0, start, TURN_STEP_DEG.to_radians(), TURNS);
         if turned.1.score > start.1.score {
             self.pop.inject(turned.0, turned.1);
         }
-        let Some(start) = self.pop.best() else { return };
-        let climbed = compass::climb(problem, 0, start.0, CLIMB_EVALUATIONS);
-        if climbed.1.score > start.1.score {
+        let climbed = compass::climb(problem, 0, turned.0, CLIMB_EVALUATIONS);
+        if climbed.1.score > turned.1.score {
             self.pop.inject(climbed.0, climbed.1);
         }
     }
