@@ -271,7 +271,10 @@ impl Observed {
     /// in the background (no generations), or one that searched the whole frame itself
     /// (more generations than the tracking poses' median, many frame periods).
     fn acquisition(&self, p: &Seen) -> bool {
-        let generations = Samples::new(self.poses.iter().map(|p| p.pose.generations as f64)).median();
+        // The median over the poses with an estimate: a window mostly spent acquiring
+        // would otherwise have a median of 0 and count every tracking pose as one.
+        let estimated = self.poses.iter().filter(|p| p.pose.generations > 0);
+        let generations = Samples::new(estimated.map(|p| p.pose.generations as f64)).median();
         p.pose.generations == 0 || p.pose.generations as f64 > generations
     }
 
@@ -558,6 +561,24 @@ mod tests {
             },
             received_ns,
         }
+    }
+
+    #[test]
+    fn a_window_mostly_acquiring_still_counts_its_tracking_poses() {
+        let mut observed = Observed::default();
+        // Six answers while a search runs in the background, then four tracking frames
+        // of 6 generations and one relocation of 12.
+        let generations = [0, 0, 0, 0, 0, 0, 12, 6, 6, 6, 6];
+        observed.poses = (0..)
+            .zip(generations)
+            .map(|(i, g)| {
+                let mut p = seen(i, i * 1_000, i * 1_000 + 500, i * 1_000 + 600);
+                p.pose.generations = g;
+                p
+            })
+            .collect();
+        let tracking: Vec<u64> = observed.tracking().map(|p| p.pose.frame_id).collect();
+        assert_eq!(tracking, [7, 8, 9, 10]);
     }
 
     #[test]
