@@ -267,29 +267,35 @@ impl Observed {
         ns as f64 * 1e-6
     }
 
+    /// The median generations of the poses with an estimate: a window mostly spent
+    /// acquiring would otherwise have a median of 0 and count every tracking pose as an
+    /// acquisition ([`Self::acquiring`]).
+    fn tracking_generations(&self) -> f64 {
+        let estimated = self.poses.iter().filter(|p| p.pose.generations > 0);
+        Samples::new(estimated.map(|p| p.pose.generations as f64)).median()
+    }
+
     /// True for a pose of an object being (re)acquired: published while its search ran
     /// in the background (no generations), or one that searched the whole frame itself
-    /// (more generations than the tracking poses' median, many frame periods).
-    fn acquisition(&self, p: &Seen) -> bool {
-        // The median over the poses with an estimate: a window mostly spent acquiring
-        // would otherwise have a median of 0 and count every tracking pose as one.
-        let estimated = self.poses.iter().filter(|p| p.pose.generations > 0);
-        let generations = Samples::new(estimated.map(|p| p.pose.generations as f64)).median();
-        p.pose.generations == 0 || p.pose.generations as f64 > generations
+    /// (more generations than `tracking_generations`, the tracking poses' median).
+    fn acquiring(p: &Seen, tracking_generations: f64) -> bool {
+        p.pose.generations == 0 || p.pose.generations as f64 > tracking_generations
     }
 
     /// The tracking poses (acquisitions left out).
     fn tracking(&self) -> impl Iterator<Item = &Seen> {
-        self.poses.iter().filter(|p| !self.acquisition(p))
+        let median = self.tracking_generations();
+        self.poses.iter().filter(move |p| !Self::acquiring(p, median))
     }
 
     /// Frames without a pose between consecutive poses: (while tracking, after an
     /// acquisition).
     fn dropped(&self) -> (u64, u64) {
         let (mut tracking, mut acquiring) = (0, 0);
+        let median = self.tracking_generations();
         for w in self.poses.windows(2) {
             let gap = w[1].pose.frame_id.saturating_sub(w[0].pose.frame_id + 1);
-            if self.acquisition(&w[0]) {
+            if Self::acquiring(&w[0], median) {
                 acquiring += gap;
             } else {
                 tracking += gap;
@@ -312,10 +318,11 @@ impl Observed {
             self.tracking()
                 .map(|p| Self::ms(p.received_ns.saturating_sub(p.pose.capture_time_ns))),
         );
+        let median = self.tracking_generations();
         let acquisitions = Samples::new(
             self.poses
                 .iter()
-                .filter(|p| self.acquisition(p))
+                .filter(|p| Self::acquiring(p, median))
                 .map(|p| Self::ms(p.pose.publish_time_ns.saturating_sub(p.pose.capture_time_ns))),
         );
         let intervals: Vec<f64> = self

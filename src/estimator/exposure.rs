@@ -58,7 +58,7 @@ pub struct Exposure {
 }
 
 impl Exposure {
-    /// Reads about [`SAMPLES`] of the inner points of `points`.
+    /// Reads about `SAMPLES` of the inner points of `points`.
     pub fn new(points: &PointSet) -> Self {
         let n = points.inner_x.len();
         let step = n.div_ceil(SAMPLES).max(1);
@@ -106,7 +106,7 @@ impl Exposure {
 
     /// Reads the model's points at `pose` (hand frame) in the left eye of `frame`, and
     /// from them the gains that bring the frame back to the reference's light (unit gains
-    /// until a reference is set), changing by at most [`MAX_STEP`] a frame. The caller
+    /// until a reference is set), changing by at most `MAX_STEP` a frame. The caller
     /// passes the pose of a tracked object only. A point the reference could not read
     /// (clipped, outside the image) is learnt from the first frame that reads it, in the
     /// reference's light.

@@ -2,10 +2,11 @@
 //! pose in 3D and the figures over time, logged to Rerun (feature `rerun`,
 //! docs/viewer.md).
 //!
-//! [`outline`] and [`thumbnail`] are plain geometry and pixels; the rest logs: [`sink`]
-//! opens the recording (a file or a running viewer), [`scene`] holds the entities and
-//! what is drawn on them, [`layout`] how the viewer arranges them, [`live`] follows the running service (`photopose viewer`)
-//! and [`search`] a one-shot search (`photopose estimate --rerun`).
+//! [`outline`] and [`thumbnail`] are plain geometry and pixels; the rest logs (with the
+//! feature only): `sink` opens the recording (a file or a running viewer), `scene` holds
+//! the entities and what is drawn on them, `layout` how the viewer arranges them, `live`
+//! follows the running service (`photopose viewer`) and `search` a one-shot search
+//! (`photopose estimate --rerun`).
 
 pub mod outline;
 pub mod thumbnail;

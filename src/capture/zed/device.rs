@@ -1,5 +1,5 @@
 //! The device layer under the ZED source: opening the camera in a mode and taking its
-//! filled buffers. [`super::v4l2`] implements it on the kernel, [`super::fake`] from a
+//! filled buffers. `super::v4l2` implements it on the kernel, [`super::fake`] from a
 //! script.
 
 use std::path::PathBuf;

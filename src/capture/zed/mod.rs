@@ -5,7 +5,7 @@
 //! Everything that does not touch the kernel compiles and is tested without the cargo
 //! feature `zed`: the mode table (here), finding the camera and its calibration in sysfs
 //! ([`discovery`]), the streaming and reconnect loop over the [`device::Device`] trait
-//! ([`stream`]) and a scripted fake camera ([`fake`]). Only [`v4l2`], the real device,
+//! ([`stream`]) and a scripted fake camera ([`fake`]). Only `v4l2`, the real device,
 //! needs the feature (the `v4l` crate, built with bindgen and libclang).
 
 pub mod device;

@@ -94,8 +94,8 @@ fn grown(problem: &Problem, p: &PoseSize) -> Vec<Genes> {
 const GROWTH: [f64; 4] = [1.5, 2.0, 2.7, 3.5];
 
 /// The best of `hypotheses` after each is tried twice, from the best of its
-/// [`variants`] and from the best of its [`grown`] copies on `level`, refined there
-/// ([`coarse`]); the [`FINALISTS`] best of those are refined on level 0 ([`fine`]),
+/// `variants` and from the best of its `grown` copies on `level`, refined there
+/// (`coarse`); the `FINALISTS` best of those are refined on level 0 (`fine`),
 /// `evaluations` each per stage. The refinements run side by side, one per worker
 /// (each seeded from `rng`, so the result does not depend on the threads).
 pub fn best(

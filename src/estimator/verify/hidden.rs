@@ -37,7 +37,7 @@ const GROWTHS: [(bool, f64); 6] = [
 /// The four sides: the growths that move one edge.
 const SIDES: &[(bool, f64)] = GROWTHS.split_at(4).0;
 
-/// `c` with up to two of its sides or axes ([`GROWTHS`]) grown where the photo's
+/// `c` with up to two of its sides or axes (`GROWTHS`) grown where the photo's
 /// texture lines up better with the part of the image that `c` covers (`box_px`: the
 /// photo box, for sizes).
 pub fn uncovered(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {

@@ -50,7 +50,7 @@ pub struct TextureTerm<'a> {
     pub pyramid: &'a BrightnessPyramid,
     /// Model points per pyramid level.
     pub points: &'a [PointSet],
-    /// Weight of [`Texture::sum`] in [`Fitness::score`].
+    /// Weight of [`Texture::sum`] in [`Fitness::score`](crate::estimator::fitness::Fitness::score).
     pub weight: f64,
     /// Levels below this (finer) add the terms to every evaluation; coarser levels
     /// leave them to the acquisition scan, which uses them itself.

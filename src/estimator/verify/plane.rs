@@ -70,7 +70,7 @@ impl TwoEyes<'_> {
     }
 
     /// [`Self::agreement`] without the points where the two eyes disagree far more than
-    /// on most ([`OUTLIER`] times the median gap between their standardised
+    /// on most (`OUTLIER` times the median gap between their standardised
     /// brightness): where a bar in front of the card shows each eye a different surface.
     /// Those disagree at any plane, and would draw the sweep towards the bar's depth.
     pub fn trimmed_agreement(&self, c: &PoseSize) -> f64 {
@@ -143,7 +143,7 @@ const ONE_SURFACE: f64 = 0.98;
 const SWEEPS: usize = 3;
 
 /// `c` moved along the left eye's ridge ([`replaced`]) to where the two eyes agree best
-/// on every point, if they then see one surface ([`ONE_SURFACE`]). Otherwise noise, or
+/// on every point, if they then see one surface (`ONE_SURFACE`). Otherwise noise, or
 /// something in front of the card, makes them differ over part of it: `c` is also swept
 /// on the agreement without those points ([`TwoEyes::trimmed_agreement`]), and of the
 /// two planes the one that scores higher on it is taken. (Trimming alone settles short

@@ -165,7 +165,7 @@ fn box_mean(px: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
 
 /// The texture terms of one candidate, each a normalised correlation in `[-1, 1]`
 /// over the points seen by both cameras, weighted by their share (see
-/// [`seen_weight`]); 0 where a signal is flat.
+/// `seen_weight`); 0 where a signal is flat.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Texture {
     /// Left against right brightness detail at the same model points.
@@ -239,7 +239,7 @@ impl Ncc {
 /// transform) on images `[left, right]` seen through `rig`: stereo on the detail (with
 /// `denoised`, corrected for the images' noise), structure on the brightness itself.
 ///
-/// The stereo term leaves out the points within [`EDGE_PX`] of the model's edge: their
+/// The stereo term leaves out the points within `EDGE_PX` of the model's edge: their
 /// detail mixes in the background just beyond the card, which each eye sees from
 /// another angle (the wall behind a card 1 m away is 40 px apart in the two eyes), so
 /// at the true pose they disagreed and a model a few per cent smaller matched better.
