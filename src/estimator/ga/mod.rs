@@ -208,6 +208,20 @@ impl<'a> Problem<'a> {
         let Some(t) = &self.texture else {
             return Texture::default();
         };
+        self.terms_on(t, l, points, c, false)
+    }
+
+    /// The texture terms at candidate `c` on full resolution, denoised, as the verdict
+    /// reads them (zero without a texture term).
+    pub fn texture_judged(&self, c: &PoseSize) -> Texture {
+        let Some(t) = &self.texture else {
+            return Texture::default();
+        };
+        self.terms_on(t, 0, &t.points[0], c, true)
+    }
+
+    /// [`texture::score`] of `c` on level `l` with `points`.
+    fn terms_on(&self, t: &TextureTerm, l: usize, points: &PointSet, c: &PoseSize, denoised: bool) -> Texture {
         let l = l.min(self.levels.len() - 1);
         texture::score(
             points,
@@ -215,7 +229,7 @@ impl<'a> Problem<'a> {
             t.pyramid.eyes(l),
             &self.scorer.left_from_hand,
             c,
-            false,
+            denoised,
             self.scorer.partial_view,
         )
     }

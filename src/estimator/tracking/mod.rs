@@ -16,6 +16,7 @@ use crate::estimator::ga::live::{Breeding, EdgeMoves, LivePopulation};
 use crate::estimator::ga::{compass, relocate, Genes, Problem, GENES};
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::{GaSettings, RobustSettings, TrackingSettings};
+use crate::estimator::verify::{self, texture::Texture};
 
 mod stream;
 
@@ -288,7 +289,12 @@ impl Tracker {
         self.last_best = Some(best);
         // A relocation is judged against the acquisition's fitness, which the verdict
         // confirmed: the same object, as well matched.
-        let state = self.judge(tracking_f.map_or(fitness.f, |f| f(&best)), plan == Plan::Acquire);
+        let texture = problem.texture_judged(&problem.bounds.decode(&best));
+        let state = self.judge(
+            tracking_f.map_or(fitness.f, |f| f(&best)),
+            plan == Plan::Acquire,
+            &texture,
+        );
         if state == TrackState::Tracking && plan == Plan::Track {
             self.confirm();
         }
@@ -301,15 +307,26 @@ impl Tracker {
     }
 
     /// The status of a frame whose best individual scored `f` (`acquired`: by a fresh
-    /// acquisition), counting the frames in a row that were not tracked.
-    fn judge(&mut self, f: f64, acquired: bool) -> TrackState {
+    /// acquisition) and whose texture terms are `texture` ([`Problem::texture_judged`]),
+    /// counting the frames in a row that were not tracked. A pose is tracked
+    /// - where its texture vouches for it ([`verify::texture_vouches`]): a card whose
+    ///   colours the light changed, whose `F` may be low; or
+    /// - where `F` is at least `[tracking] min_fitness` and either its share of the best
+    ///   `F` since the acquisition or (not in doubt) the stereo term holds
+    ///   ([`verify::stereo_holds`]): blur lowers the `F` of the right pose, not the two
+    ///   eyes' agreement on it.
+    ///
+    /// Never below `lost_fitness`.
+    fn judge(&mut self, f: f64, acquired: bool, texture: &Texture) -> TrackState {
         self.best_f = if acquired { f } else { self.best_f.max(f) };
         let share = if self.doubted {
             DOUBT_SHARE
         } else {
             self.settings.min_fitness_share
         };
-        let tracked = f >= self.settings.min_fitness && f >= share * self.best_f;
+        let blurred = !self.doubted && verify::stereo_holds(texture);
+        let colour = f >= self.settings.min_fitness && (f >= share * self.best_f || blurred);
+        let tracked = verify::texture_vouches(texture) || colour;
         self.searching = if tracked { 0 } else { self.searching + 1 };
         self.doubted &= !tracked;
         // Below the floor (or NaN) the pose is never called tracked.
@@ -411,10 +428,27 @@ mod tests {
     /// The statuses `judge` gives a sequence of `(F, acquired)` with the default settings.
     fn statuses(frames: &[(f64, bool)]) -> Vec<TrackState> {
         let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
-        frames.iter().map(|&(f, acquired)| tracker.judge(f, acquired)).collect()
+        frames
+            .iter()
+            .map(|&(f, acquired)| tracker.judge(f, acquired, &NONE))
+            .collect()
     }
 
     const T: TrackState = TrackState::Tracking;
+    /// Texture terms: none (no texture read, or flat), both as a found pose has them,
+    /// and only the two eyes' agreement (a blurred card).
+    const NONE: Texture = Texture {
+        stereo: 0.0,
+        structure: 0.0,
+    };
+    const VOUCHES: Texture = Texture {
+        stereo: 0.9,
+        structure: 0.92,
+    };
+    const STEREO: Texture = Texture {
+        stereo: 0.9,
+        structure: 0.6,
+    };
     const S: TrackState = TrackState::Searching;
     const L: TrackState = TrackState::Lost;
 
@@ -434,14 +468,14 @@ mod tests {
     #[test]
     fn after_a_doubtful_relocation_tracking_needs_nearly_the_acquisitions_fitness() {
         let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
-        assert_eq!(tracker.judge(1.95, true), T);
+        assert_eq!(tracker.judge(1.95, true, &NONE), T);
         // 1.75 is 0.90 of the acquisition's F: tracked unless in doubt.
-        assert_eq!(tracker.judge(1.75, false), T);
+        assert_eq!(tracker.judge(1.75, false, &NONE), T);
         tracker.doubt();
-        assert_eq!(tracker.judge(1.75, false), S);
-        assert_eq!(tracker.judge(1.86, false), T);
+        assert_eq!(tracker.judge(1.75, false, &NONE), S);
+        assert_eq!(tracker.judge(1.86, false, &NONE), T);
         // The doubt ends with a tracked frame.
-        assert_eq!(tracker.judge(1.75, false), T);
+        assert_eq!(tracker.judge(1.75, false, &NONE), T);
     }
 
     #[test]
@@ -449,12 +483,12 @@ mod tests {
         let settings = TrackingSettings::default();
         let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
         tracker.pop = LivePopulation::of(vec![[0.5; GENES]]);
-        assert_eq!(tracker.judge(1.95, true), T);
+        assert_eq!(tracker.judge(1.95, true, &NONE), T);
         for _ in 0..settings.lost_after_frames {
-            assert_eq!(tracker.judge(1.5, false), S);
+            assert_eq!(tracker.judge(1.5, false, &NONE), S);
             assert!(!tracker.needs_acquisition());
         }
-        assert_eq!(tracker.judge(1.5, false), L);
+        assert_eq!(tracker.judge(1.5, false, &NONE), L);
         assert!(tracker.needs_acquisition());
     }
 
@@ -468,7 +502,7 @@ mod tests {
         assert_eq!(tracker.plan(), Plan::Track);
         tracker.confirm();
         for _ in 0..=settings.lost_after_frames {
-            tracker.judge(0.9, false);
+            tracker.judge(0.9, false, &NONE);
         }
         // Lost: the recoveries, one per frame (each counted by `step`), then an acquisition.
         for _ in 0..RECOVERIES {
@@ -482,9 +516,33 @@ mod tests {
         tracker.reject_acquisition();
         assert_eq!(tracker.plan(), Plan::Recover);
         // A recovery that is tracked ends the loss.
-        assert_eq!(tracker.judge(1.9, false), T);
+        assert_eq!(tracker.judge(1.9, false, &NONE), T);
         tracker.confirm();
         assert_eq!(tracker.plan(), Plan::Track);
+    }
+
+    #[test]
+    fn texture_that_vouches_or_eyes_that_agree_keep_a_card_tracked_but_never_below_the_floor() {
+        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        // F 0.73 is below min_fitness (1.0): searching on colour alone, tracking where
+        // both eyes see the photo's texture at the pose.
+        assert_eq!(tracker.judge(0.73, true, &NONE), S);
+        assert_eq!(tracker.judge(0.73, true, &VOUCHES), T);
+        // Also a slipped share of the best F (0.85 × 1.95 = 1.66) and a doubt.
+        assert_eq!(tracker.judge(1.95, false, &NONE), T);
+        tracker.doubt();
+        assert_eq!(tracker.judge(1.2, false, &VOUCHES), T);
+        assert!(!tracker.doubted(), "a tracked frame ends the doubt");
+        // Blurred: F 1.6 is below 0.85 × 1.95, but the two eyes agree on the pose.
+        assert_eq!(tracker.judge(1.6, false, &NONE), S);
+        assert_eq!(tracker.judge(1.6, false, &STEREO), T);
+        // Not in doubt, nor below min_fitness.
+        assert_eq!(tracker.judge(0.9, false, &STEREO), S);
+        tracker.doubt();
+        assert_eq!(tracker.judge(1.6, false, &STEREO), S);
+        // Below lost_fitness (0.5) nothing is tracked.
+        assert_eq!(tracker.judge(0.45, false, &VOUCHES), L);
+        assert_eq!(tracker.judge(f64::NAN, false, &VOUCHES), L);
     }
 
     #[test]

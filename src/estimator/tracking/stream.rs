@@ -18,6 +18,7 @@ use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::Mode;
 use crate::estimator::verify::texture::{self, Brightness};
 use crate::estimator::verify::tilt_resolved;
+use crate::estimator::verify::{BrightnessPyramid, TextureTerm};
 use crate::vision::frame::Region;
 use crate::vision::lookup::{LevelLookup, SbsBytes};
 
@@ -85,6 +86,21 @@ impl FrameError {
     }
 }
 
+/// What a tracking frame read of both eyes' brightness ([`StreamTracker::prepare`]).
+#[derive(Clone, Copy, PartialEq)]
+enum EyesRead {
+    /// Nothing: paper mode, or a texture weight of 0, and not in doubt.
+    No,
+    /// The texture terms, for the ranking and the status.
+    Texture,
+    /// The texture terms of a frame in doubt, which the [`DOUBT_TEXTURE`] test judges.
+    InDoubt,
+}
+
+/// Texture points on tracking frames: one model point in this many (at the photo's
+/// full resolution): the terms cost more per point than the colour test.
+const TEXTURE_STRIDE: usize = 4;
+
 /// What the next [`StreamTracker::step`] works on.
 enum Ready {
     /// Lookup regions around the prediction were refilled from the frame.
@@ -112,8 +128,16 @@ pub struct StreamTracker {
     tracker: Tracker,
     /// The gains that bring each frame back to the light of the acquisition's frame.
     exposure: Exposure,
-    /// Both eyes' brightness in the regions of a tracking frame read in doubt.
-    eyes: Option<[Brightness; 2]>,
+    /// The model's points for the texture terms on tracking frames.
+    texture_points: [PointSet; 1],
+    /// Weight of the texture terms in a tracking frame's ranking (0: not read).
+    texture_weight: f64,
+    /// Both eyes' brightness in a tracking frame's regions, and their buffers.
+    eyes: BrightnessPyramid,
+    scratch: texture::Scratch,
+    /// What the frame prepared last read of the eyes' brightness: nothing, the texture
+    /// terms, or the texture terms of a frame in doubt.
+    eyes_read: EyesRead,
     ready: Option<Ready>,
 }
 
@@ -146,6 +170,13 @@ impl StreamTracker {
         let tracker = Tracker::new(&config, [model.l_p, model.b_p], config.ga.seed);
         let strip = 2.0 * model.outer_width_px;
         let exposure = Exposure::new(&points[0]);
+        let texture_points = [PointSet::from_model(&model, &scorer.params, 1).every(TEXTURE_STRIDE)];
+        let robust = config.ga.mode == Mode::Robust;
+        let texture_weight = if robust && config.tracking.texture {
+            config.robust.texture_weight
+        } else {
+            0.0
+        };
         Self {
             exposure,
             extent_px: [model.l_p + strip, model.b_p + strip],
@@ -156,7 +187,11 @@ impl StreamTracker {
             points,
             regions: None,
             tracker,
-            eyes: None,
+            texture_points,
+            texture_weight,
+            eyes: BrightnessPyramid::of_eyes([Brightness::empty(), Brightness::empty()]),
+            scratch: texture::Scratch::default(),
+            eyes_read: EyesRead::No,
             ready: None,
         }
     }
@@ -200,10 +235,7 @@ impl StreamTracker {
                     self.exposure.gains()
                 };
                 regions.refill(frame, &rois, &self.scorer.texel_rule().with_gains(gains));
-                self.eyes = self
-                    .tracker
-                    .doubted()
-                    .then(|| [0, 1].map(|eye| Brightness::of_region(frame, eye, &rois[eye])));
+                self.read_eyes(frame, &rois);
                 Ready::Regions
             }
             None => {
@@ -230,14 +262,23 @@ impl StreamTracker {
                 let regions = std::slice::from_ref(self.regions.as_ref()?);
                 let threads = self.config.tracking.threads;
                 let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
-                // Read only on a frame in doubt (see `prepare`).
-                let eyes = self.eyes.take();
+                let read = std::mem::replace(&mut self.eyes_read, EyesRead::No);
+                let problem = match read {
+                    EyesRead::No => problem,
+                    _ => problem.with_texture(TextureTerm {
+                        pyramid: &self.eyes,
+                        points: &self.texture_points,
+                        weight: self.texture_weight,
+                        below_level: if self.texture_weight > 0.0 { 1 } else { 0 },
+                    }),
+                };
                 let mut estimate = self.tracker.step(&problem);
-                if let Some(eyes) = eyes.filter(|_| estimate.state == TrackState::Tracking) {
-                    if !self.texture_holds(&problem, &eyes, &estimate.best) {
-                        estimate.state = TrackState::Searching;
-                        self.tracker.doubt();
-                    }
+                if read == EyesRead::InDoubt
+                    && estimate.state == TrackState::Tracking
+                    && !texture_holds(&problem, &self.points[0], &estimate.best)
+                {
+                    estimate.state = TrackState::Searching;
+                    self.tracker.doubt();
                 }
                 // A pose whose tilt the stereo pair cannot resolve (a small card far
                 // away) is followed but not called tracking: its orientation is a guess.
@@ -281,20 +322,25 @@ impl StreamTracker {
         })
     }
 
-    /// Whether the two eyes' brightness `[left, right]` agrees at `pose` on a tracking
-    /// frame read in doubt ([`DOUBT_TEXTURE`]).
-    fn texture_holds(&self, problem: &Problem, [left, right]: &[Brightness; 2], pose: &PoseSize) -> bool {
-        let rig = &problem.levels[0].rig;
-        let t = texture::score(
-            &self.points[0],
-            rig,
-            [left, right],
-            &self.scorer.left_from_hand,
-            pose,
-            true,
-            false,
-        );
-        t.stereo >= DOUBT_TEXTURE[0] && t.structure >= DOUBT_TEXTURE[1]
+    /// Reads both eyes' brightness in `rois` where this tracking frame needs it
+    /// ([`EyesRead`]), into buffers sized for a whole eye on the first such frame.
+    fn read_eyes(&mut self, frame: &SbsBytes, rois: &[Region; 2]) {
+        self.eyes_read = if self.tracker.doubted() {
+            EyesRead::InDoubt
+        } else if self.texture_weight > 0.0 {
+            EyesRead::Texture
+        } else {
+            EyesRead::No
+        };
+        if self.eyes_read == EyesRead::No {
+            return;
+        }
+        let pixels = frame.width * frame.height;
+        self.scratch.reserve(pixels);
+        for (eye, brightness) in self.eyes.finest_mut().iter_mut().enumerate() {
+            brightness.reserve(pixels);
+            brightness.refill_region(frame, eye, &rois[eye], &mut self.scratch);
+        }
     }
 
     /// The next frame directly follows the last one searched ([`Tracker::follow_on`]).
@@ -317,4 +363,16 @@ impl StreamTracker {
     pub fn model(&self) -> &PhotoModel {
         &self.model
     }
+}
+
+/// Whether the two eyes' brightness agrees at `pose` on a tracking frame read in doubt
+/// ([`DOUBT_TEXTURE`]), on every model point of `points`.
+fn texture_holds(problem: &Problem, points: &PointSet, pose: &PoseSize) -> bool {
+    let Some(term) = &problem.texture else {
+        return false;
+    };
+    let rig = &problem.levels[0].rig;
+    let eyes = term.pyramid.eyes(0);
+    let t = texture::score(points, rig, eyes, &problem.scorer.left_from_hand, pose, true, false);
+    t.stereo >= DOUBT_TEXTURE[0] && t.structure >= DOUBT_TEXTURE[1]
 }

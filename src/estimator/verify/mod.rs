@@ -34,6 +34,16 @@ impl BrightnessPyramid {
         }
     }
 
+    /// A pyramid of one level: `eyes` (left, right), for a tracking frame's regions.
+    pub fn of_eyes(eyes: [Brightness; 2]) -> Self {
+        Self { levels: vec![eyes] }
+    }
+
+    /// Both eyes of the finest level, to be read again ([`Brightness::refill_region`]).
+    pub fn finest_mut(&mut self) -> &mut [Brightness; 2] {
+        &mut self.levels[0]
+    }
+
     /// Both eyes on level `l` (the coarsest if `l` is beyond it).
     pub fn eyes(&self, l: usize) -> [&Brightness; 2] {
         let [a, b] = &self.levels[l.min(self.levels.len() - 1)];
@@ -131,6 +141,19 @@ fn tilt_confidence(tilt_px: f64) -> f64 {
 /// every frame it calls `tracking`, the colour fitness alone judging the rest.
 pub fn tilt_resolved(p: &PoseSize, box_px: [f64; 2], rig: &StereoRig, left_from_hand: &Isometry3<f64>) -> bool {
     tilt_confidence(tilt_disparity_px(p, box_px, rig, left_from_hand)) >= FOUND_CONFIDENCE
+}
+
+/// Whether texture terms `t` (denoised, at full resolution) hold as the verdict asks of
+/// a pose it calls found: stereo ≥ 0.85 and structure ≥ 0.90 (their confidences reach
+/// [`FOUND_CONFIDENCE`]).
+pub fn texture_vouches(t: &Texture) -> bool {
+    stereo_holds(t) && ramp(t.structure, 0.75, 0.95) >= FOUND_CONFIDENCE
+}
+
+/// Whether the two eyes agree at a pose as the verdict asks of a found one (the stereo
+/// term of `t` ≥ 0.85): the depth is right, whatever the blur did to the structure.
+pub fn stereo_holds(t: &Texture) -> bool {
+    ramp(t.stereo, 0.70, 0.90) >= FOUND_CONFIDENCE
 }
 
 /// The least confidence reported as found.

@@ -35,21 +35,71 @@ pub struct Brightness {
 /// Half-width of the box mean that [`Brightness`] subtracts for the detail.
 const DETAIL_RADIUS: usize = 2;
 
+/// Buffers that [`Brightness::refill_region`] reuses: a tracking frame reads its
+/// regions' brightness without allocating.
+#[derive(Debug, Default)]
+pub struct Scratch {
+    values: Vec<f32>,
+    rows: Vec<f32>,
+    detail: Vec<f32>,
+    blocks: Vec<f32>,
+}
+
+impl Scratch {
+    /// Room for regions of up to `pixels` pixels.
+    pub fn reserve(&mut self, pixels: usize) {
+        for buf in [&mut self.values, &mut self.rows, &mut self.detail] {
+            buf.reserve(pixels.saturating_sub(buf.len()));
+        }
+        self.blocks.reserve((pixels / 64).saturating_sub(self.blocks.len()));
+    }
+}
+
 impl Brightness {
     /// The HSV value of every pixel of `img`, and its detail.
     pub fn of(img: &RgbImage) -> Self {
         let (width, height) = (img.width() as usize, img.height() as usize);
-        let px: Vec<f32> = img.pixels().map(|p| hsv_value(&p.0)).collect();
-        Self::from_values(px, width, height, (0, 0))
+        let mut scratch = Scratch {
+            values: img.pixels().map(|p| hsv_value(&p.0)).collect(),
+            ..Scratch::default()
+        };
+        let mut b = Self::empty();
+        b.fill(width, height, (0, 0), &mut scratch);
+        b
     }
 
     /// [`Brightness::of`] the pixels of `region` in eye `eye` (0 left, 1 right) of a
     /// side-by-side frame; samples keep the image's pixel coordinates.
     pub fn of_region(frame: &SbsBytes, eye: usize, region: &Region) -> Self {
+        let mut b = Self::empty();
+        b.refill_region(frame, eye, region, &mut Scratch::default());
+        b
+    }
+
+    /// No pixels: every sample is outside.
+    pub fn empty() -> Self {
+        Self {
+            origin: (0.0, 0.0),
+            width: 0,
+            height: 0,
+            px: Vec::new(),
+            noise_var: 0.0,
+        }
+    }
+
+    /// Room for regions of up to `pixels` pixels.
+    pub fn reserve(&mut self, pixels: usize) {
+        self.px.reserve(pixels.saturating_sub(self.px.len()));
+    }
+
+    /// This brightness becomes [`Brightness::of_region`]`(frame, eye, region)`, in the
+    /// buffers it and `scratch` hold (no allocation where they are large enough).
+    pub fn refill_region(&mut self, frame: &SbsBytes, eye: usize, region: &Region, scratch: &mut Scratch) {
         let cols = region.cols.start.min(frame.width)..region.cols.end.min(frame.width);
         let rows = region.rows.start.min(frame.height)..region.rows.end.min(frame.height);
         let (width, height) = (cols.len(), rows.len());
-        let mut px = Vec::with_capacity(width * height);
+        let px = &mut scratch.values;
+        px.clear();
         for v in rows.clone() {
             match frame.rgb_row(eye, v, cols.clone()) {
                 Some(row) => px.extend(row.chunks_exact(3).map(hsv_value)),
@@ -59,20 +109,25 @@ impl Brightness {
                 ),
             }
         }
-        Self::from_values(px, width, height, (cols.start, rows.start))
+        self.fill(width, height, (cols.start, rows.start), scratch);
     }
 
-    fn from_values(px: Vec<f32>, width: usize, height: usize, origin: (usize, usize)) -> Self {
-        let mean = box_mean(&px, width, height, DETAIL_RADIUS);
-        let detail: Vec<f32> = px.iter().zip(&mean).map(|(a, m)| a - m).collect();
-        let noise_var = noise_variance(&detail, width, height);
-        Self {
-            origin: (origin.0 as f32, origin.1 as f32),
-            width,
-            height,
-            px: px.into_iter().zip(detail).map(|(a, d)| [a, d]).collect(),
-            noise_var,
-        }
+    /// Sets the brightness to `scratch.values` (`width` × `height` pixels whose corner
+    /// is image pixel `origin`) and works out its detail and noise.
+    fn fill(&mut self, width: usize, height: usize, origin: (usize, usize), scratch: &mut Scratch) {
+        let Scratch {
+            values,
+            rows,
+            detail,
+            blocks,
+        } = scratch;
+        box_mean_into(values, width, height, DETAIL_RADIUS, rows, detail);
+        detail.iter_mut().zip(values.iter()).for_each(|(d, a)| *d = a - *d);
+        self.noise_var = noise_variance(detail, width, height, blocks);
+        self.origin = (origin.0 as f32, origin.1 as f32);
+        (self.width, self.height) = (width, height);
+        self.px.clear();
+        self.px.extend(values.iter().zip(detail.iter()).map(|(&a, &d)| [a, d]));
     }
 
     /// Bilinear samples of the brightness and the detail at pixel `(u, v)`, and the
@@ -109,9 +164,9 @@ fn hsv_value(rgb: &[u8]) -> f32 {
 
 /// The noise variance of a detail image: the variance of its flattest 8 × 8 blocks
 /// (the 5th percentile), where only noise is left.
-fn noise_variance(detail: &[f32], w: usize, h: usize) -> f32 {
+fn noise_variance(detail: &[f32], w: usize, h: usize, vars: &mut Vec<f32>) -> f32 {
     const B: usize = 8;
-    let mut vars = Vec::with_capacity((w / B) * (h / B));
+    vars.clear();
     for by in 0..h / B {
         for bx in 0..w / B {
             let (mut s, mut ss) = (0.0f32, 0.0f32);
@@ -132,23 +187,32 @@ fn noise_variance(detail: &[f32], w: usize, h: usize) -> f32 {
     *vars.select_nth_unstable_by(k, f32::total_cmp).1
 }
 
-/// The mean of each pixel's `(2r + 1)²` neighbourhood (clamped at the edges): a pass
-/// along each row, then one adding whole rows (in memory order, not down columns).
+/// The mean of each pixel's `(2r + 1)²` neighbourhood (clamped at the edges).
+#[cfg(test)]
 fn box_mean(px: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    let mut out = Vec::new();
+    box_mean_into(px, w, h, r, &mut Vec::new(), &mut out);
+    out
+}
+
+/// `out` = the box mean of `px` (see `box_mean`): a pass along each row into `rows`,
+/// then one adding whole rows (in memory order, not down columns). Each buffer is
+/// written before it is read (a fresh buffer's pages are then mapped once, not on a
+/// read and again on the write).
+fn box_mean_into(px: &[f32], w: usize, h: usize, r: usize, rows: &mut Vec<f32>, out: &mut Vec<f32>) {
+    rows.clear();
+    out.clear();
     if w == 0 || h == 0 {
-        return vec![0.0; px.len()];
+        out.extend(px.iter().map(|_| 0.0));
+        return;
     }
-    let mut rows = vec![0.0f32; px.len()];
     let window = |k: usize, len: usize| (k.saturating_sub(r), (k + r).min(len - 1));
-    for (src, dst) in px.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
-        for (k, d) in dst.iter_mut().enumerate() {
+    for src in px.chunks_exact(w) {
+        rows.extend((0..w).map(|k| {
             let (a, b) = window(k, w);
-            *d = src[a..=b].iter().sum::<f32>() / (b - a + 1) as f32;
-        }
+            src[a..=b].iter().sum::<f32>() / (b - a + 1) as f32
+        }));
     }
-    // Each output row is first written, never read before (a fresh buffer's pages
-    // are then mapped once, not on a read and again on the write).
-    let mut out = Vec::with_capacity(px.len());
     for y in 0..h {
         let (a, b) = window(y, h);
         let start = out.len();
@@ -160,7 +224,6 @@ fn box_mean(px: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
         let n = (b - a + 1) as f32;
         dst.iter_mut().for_each(|d| *d /= n);
     }
-    out
 }
 
 /// The texture terms of one candidate, each a normalised correlation in `[-1, 1]`
@@ -433,6 +496,40 @@ mod tests {
             }
         }
         assert!(box_mean(&[], 0, 0, r).is_empty());
+    }
+
+    #[test]
+    fn a_brightness_read_again_into_its_buffers_equals_a_fresh_read() {
+        let img = noise_image(40, 30, 3);
+        let bytes: Vec<u8> = (0..30)
+            .flat_map(|y| (0..2).flat_map(move |_| (0..40).map(move |x| (x, y))))
+            .flat_map(|(x, y)| img.get_pixel(x, y).0)
+            .collect();
+        let frame = SbsBytes {
+            bytes: &bytes,
+            width: 40,
+            height: 30,
+            row_stride: 240,
+            format: PixelFormat::Rgb8,
+        };
+        let (mut kept, mut scratch) = (Brightness::empty(), Scratch::default());
+        scratch.reserve(40 * 30);
+        kept.reserve(40 * 30);
+        // A large region, then a smaller one elsewhere: nothing of the first may remain.
+        for region in [(0..40, 0..30), (30..38, 20..29), (5..25, 2..12)] {
+            let region = Region {
+                cols: region.0,
+                rows: region.1,
+            };
+            kept.refill_region(&frame, 1, &region, &mut scratch);
+            let fresh = Brightness::of_region(&frame, 1, &region);
+            assert_eq!(
+                (kept.width, kept.height, kept.origin),
+                (fresh.width, fresh.height, fresh.origin)
+            );
+            assert_eq!(kept.px, fresh.px);
+            assert_eq!(kept.noise_var, fresh.noise_var);
+        }
     }
 
     #[test]
