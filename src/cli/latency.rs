@@ -282,17 +282,16 @@ impl Observed {
         p.pose.generations == 0 || p.pose.generations as f64 > tracking_generations
     }
 
-    /// The tracking poses (acquisitions left out).
-    fn tracking(&self) -> impl Iterator<Item = &Seen> {
-        let median = self.tracking_generations();
+    /// The tracking poses (acquisitions left out), `median` the
+    /// [`Self::tracking_generations`].
+    fn tracking(&self, median: f64) -> impl Iterator<Item = &Seen> {
         self.poses.iter().filter(move |p| !Self::acquiring(p, median))
     }
 
     /// Frames without a pose between consecutive poses: (while tracking, after an
-    /// acquisition).
-    fn dropped(&self) -> (u64, u64) {
+    /// acquisition), `median` the [`Self::tracking_generations`].
+    fn dropped(&self, median: f64) -> (u64, u64) {
         let (mut tracking, mut acquiring) = (0, 0);
-        let median = self.tracking_generations();
         for w in self.poses.windows(2) {
             let gap = w[1].pose.frame_id.saturating_sub(w[0].pose.frame_id + 1);
             if Self::acquiring(&w[0], median) {
@@ -305,20 +304,20 @@ impl Observed {
     }
 
     fn report(&self) -> Report {
+        let median = self.tracking_generations();
         let transport = Samples::new(
             self.frames
                 .values()
                 .map(|&(sent, got)| got.saturating_sub(sent) as f64 * 1e-3),
         );
         let estimation = Samples::new(
-            self.tracking()
+            self.tracking(median)
                 .map(|p| Self::ms(p.pose.publish_time_ns.saturating_sub(p.pose.capture_time_ns))),
         );
         let end_to_end = Samples::new(
-            self.tracking()
+            self.tracking(median)
                 .map(|p| Self::ms(p.received_ns.saturating_sub(p.pose.capture_time_ns))),
         );
-        let median = self.tracking_generations();
         let acquisitions = Samples::new(
             self.poses
                 .iter()
@@ -333,7 +332,7 @@ impl Observed {
         let interval = Samples::new(intervals.iter().copied());
         let mean = interval.mean();
         let jitter = (intervals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / intervals.len().max(1) as f64).sqrt();
-        let (dropped, skipped) = self.dropped();
+        let (dropped, skipped) = self.dropped(median);
         Report {
             seconds: self.seconds,
             frames: self.frames.len(),
@@ -386,8 +385,9 @@ impl Observed {
     /// A histogram of the end-to-end latency above its time series (and estimation's).
     fn plot(&self) -> Result<image::RgbImage, plot::PlotError> {
         let t0 = self.poses.first().map(|p| p.pose.capture_time_ns).unwrap_or(0);
+        let median = self.tracking_generations();
         let series = |f: &dyn Fn(&Seen) -> u64| -> Vec<(f64, f64)> {
-            self.tracking()
+            self.tracking(median)
                 .map(|p| (p.pose.capture_time_ns.saturating_sub(t0) as f64 * 1e-9, Self::ms(f(p))))
                 .collect()
         };
@@ -584,7 +584,10 @@ mod tests {
                 p
             })
             .collect();
-        let tracking: Vec<u64> = observed.tracking().map(|p| p.pose.frame_id).collect();
+        let tracking: Vec<u64> = observed
+            .tracking(observed.tracking_generations())
+            .map(|p| p.pose.frame_id)
+            .collect();
         assert_eq!(tracking, [7, 8, 9, 10]);
     }
 
