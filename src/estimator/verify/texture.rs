@@ -478,6 +478,28 @@ mod tests {
         })
     }
 
+    /// The RGB8 side-by-side bytes of two eyes of the same size.
+    fn side_by_side(left: &RgbImage, right: &RgbImage) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        for y in 0..left.height() {
+            for eye in [left, right] {
+                (0..eye.width()).for_each(|x| bytes.extend(eye.get_pixel(x, y).0));
+            }
+        }
+        bytes
+    }
+
+    /// `bytes` as a side-by-side RGB8 frame of two `w × h` eyes.
+    fn rgb_frame(bytes: &[u8], w: usize, h: usize) -> SbsBytes<'_> {
+        SbsBytes {
+            bytes,
+            width: w,
+            height: h,
+            row_stride: 6 * w,
+            format: PixelFormat::Rgb8,
+        }
+    }
+
     #[test]
     fn box_mean_is_the_mean_of_the_clamped_window() {
         let (w, h, r) = (9, 6, 2);
@@ -501,17 +523,8 @@ mod tests {
     #[test]
     fn a_brightness_read_again_into_its_buffers_equals_a_fresh_read() {
         let img = noise_image(40, 30, 3);
-        let bytes: Vec<u8> = (0..30)
-            .flat_map(|y| (0..2).flat_map(move |_| (0..40).map(move |x| (x, y))))
-            .flat_map(|(x, y)| img.get_pixel(x, y).0)
-            .collect();
-        let frame = SbsBytes {
-            bytes: &bytes,
-            width: 40,
-            height: 30,
-            row_stride: 240,
-            format: PixelFormat::Rgb8,
-        };
+        let bytes = side_by_side(&img, &img);
+        let frame = rgb_frame(&bytes, 40, 30);
         let (mut kept, mut scratch) = (Brightness::empty(), Scratch::default());
         scratch.reserve(40 * 30);
         kept.reserve(40 * 30);
@@ -535,19 +548,8 @@ mod tests {
     #[test]
     fn a_region_of_a_frame_reads_as_the_same_crop_of_the_image() {
         let (left, right) = (noise_image(40, 30, 1), noise_image(40, 30, 2));
-        let mut bytes = Vec::new();
-        for y in 0..30 {
-            for eye in [&left, &right] {
-                (0..40).for_each(|x| bytes.extend(eye.get_pixel(x, y).0));
-            }
-        }
-        let frame = SbsBytes {
-            bytes: &bytes,
-            width: 40,
-            height: 30,
-            row_stride: 240,
-            format: PixelFormat::Rgb8,
-        };
+        let bytes = side_by_side(&left, &right);
+        let frame = rgb_frame(&bytes, 40, 30);
         // Partly outside the image: clamped to columns 25..40, rows 4..30.
         let region = Region {
             cols: 25..50,
