@@ -86,17 +86,6 @@ impl FrameError {
     }
 }
 
-/// What a tracking frame read of both eyes' brightness ([`StreamTracker::prepare`]).
-#[derive(Clone, Copy, PartialEq)]
-enum EyesRead {
-    /// Nothing: paper mode, or a texture weight of 0, and not in doubt.
-    No,
-    /// The texture terms, for the ranking and the status.
-    Texture,
-    /// The texture terms of a frame in doubt, which the [`DOUBT_TEXTURE`] test judges.
-    InDoubt,
-}
-
 /// Texture points on tracking frames: one model point in this many (at the photo's
 /// full resolution): the terms cost more per point than the colour test.
 const TEXTURE_STRIDE: usize = 4;
@@ -135,9 +124,6 @@ pub struct StreamTracker {
     /// Both eyes' brightness in a tracking frame's regions, and their buffers.
     eyes: BrightnessPyramid,
     scratch: texture::Scratch,
-    /// What the frame prepared last read of the eyes' brightness: nothing, the texture
-    /// terms, or the texture terms of a frame in doubt.
-    eyes_read: EyesRead,
     ready: Option<Ready>,
 }
 
@@ -191,7 +177,6 @@ impl StreamTracker {
             texture_weight,
             eyes: BrightnessPyramid::of_eyes([Brightness::empty(), Brightness::empty()]),
             scratch: texture::Scratch::default(),
-            eyes_read: EyesRead::No,
             ready: None,
         }
     }
@@ -262,18 +247,20 @@ impl StreamTracker {
                 let regions = std::slice::from_ref(self.regions.as_ref()?);
                 let threads = self.config.tracking.threads;
                 let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
-                let read = std::mem::replace(&mut self.eyes_read, EyesRead::No);
-                let problem = match read {
-                    EyesRead::No => problem,
-                    _ => problem.with_texture(TextureTerm {
+                // The eyes were read in `prepare` where this holds.
+                let in_doubt = self.tracker.doubted();
+                let problem = if self.reads_eyes() {
+                    problem.with_texture(TextureTerm {
                         pyramid: &self.eyes,
                         points: &self.texture_points,
                         weight: self.texture_weight,
                         below_level: if self.texture_weight > 0.0 { 1 } else { 0 },
-                    }),
+                    })
+                } else {
+                    problem
                 };
                 let mut estimate = self.tracker.step(&problem);
-                if read == EyesRead::InDoubt
+                if in_doubt
                     && estimate.state == TrackState::Tracking
                     && !texture_holds(&problem, &self.points[0], &estimate.best)
                 {
@@ -322,17 +309,17 @@ impl StreamTracker {
         })
     }
 
+    /// Whether a tracking frame reads both eyes' brightness: for the texture terms in
+    /// its ranking and status, or for the [`DOUBT_TEXTURE`] test of a frame in doubt.
+    fn reads_eyes(&self) -> bool {
+        self.texture_weight > 0.0 || self.tracker.doubted()
+    }
+
     /// Reads both eyes' brightness in `rois` where this tracking frame needs it
-    /// ([`EyesRead`]), into buffers sized for a whole eye on the first such frame.
+    /// ([`StreamTracker::reads_eyes`]), into buffers sized for a whole eye on the first
+    /// such frame.
     fn read_eyes(&mut self, frame: &SbsBytes, rois: &[Region; 2]) {
-        self.eyes_read = if self.tracker.doubted() {
-            EyesRead::InDoubt
-        } else if self.texture_weight > 0.0 {
-            EyesRead::Texture
-        } else {
-            EyesRead::No
-        };
-        if self.eyes_read == EyesRead::No {
+        if !self.reads_eyes() {
             return;
         }
         let pixels = frame.width * frame.height;
