@@ -20,6 +20,7 @@ use photopose::estimator::ga::robust::view_sample;
 use photopose::estimator::ga::{Genes, Problem};
 use photopose::estimator::model::PhotoModel;
 use photopose::estimator::oneshot::Prepared;
+use photopose::estimator::verify::texture::{Brightness, Scratch};
 use photopose::vision::frame::{Region, StereoImages};
 use photopose::vision::lookup::{LevelLookup, LookupImage, SbsBytes};
 use photopose::vision::PixelFormat;
@@ -118,4 +119,46 @@ fn colour_prep_pyramid(bencher: Bencher) {
     bencher
         .counter(ItemsCount::new(2 * w as usize * h as usize))
         .bench_local(|| LevelLookup::pyramid(black_box(&f.images), &rig, levels, &rule));
+}
+
+/// The texture terms (stereo and structure) on random visible individuals at full
+/// resolution, on the one-shot search's texture points (every fourth model point).
+#[divan::bench]
+fn texture_terms(bencher: Bencher) {
+    let f = fixture();
+    let p = &f.prepared;
+    let problem = p.problem(&f.config);
+    let points = &p.texture_points[0];
+    let poses: Vec<_> = f.genes.iter().map(|g| p.bounds.decode(g)).collect();
+    bencher
+        .counter(ItemsCount::new(poses.len() * points.inner_v.len()))
+        .bench_local(|| {
+            poses
+                .iter()
+                .map(|c| problem.texture_at(0, points, black_box(c)).sum())
+                .sum::<f64>()
+        });
+}
+
+/// A tracking frame's brightness read: one eye's brightness and detail in a 400 × 300
+/// region around the card, into buffers kept from frame to frame.
+#[divan::bench]
+fn brightness_region(bencher: Bencher) {
+    let f = fixture();
+    let (w, h) = f.images.eye_size();
+    let frame = SbsBytes {
+        bytes: &f.sbs,
+        width: w as usize,
+        height: h as usize,
+        row_stride: 6 * w as usize,
+        format: PixelFormat::Rgb8,
+    };
+    let region = Region {
+        cols: 440..840,
+        rows: 210..510,
+    };
+    let (mut eye, mut scratch) = (Brightness::empty(), Scratch::default());
+    bencher
+        .counter(ItemsCount::new(region.cols.len() * region.rows.len()))
+        .bench_local(|| eye.refill_region(black_box(&frame), 0, &region, &mut scratch));
 }

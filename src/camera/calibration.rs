@@ -348,7 +348,7 @@ impl Calibration {
             Some(res) => self.rig(res),
             None => {
                 let hint = match Resolution::from_size(width_per_eye / 2, height) {
-                    Some(res) if width_per_eye % 2 == 0 => format!(
+                    Some(res) if width_per_eye.is_multiple_of(2) => format!(
                         "; {width_per_eye}x{height} looks like a side-by-side frame, whose per-eye size is {} {}x{height}",
                         res.name(),
                         width_per_eye / 2

@@ -43,7 +43,7 @@ impl RawDetect {
                 return Err(invalid(field, format!("{v} must lie in (0, 1]")));
             }
         }
-        if self.input_size < 32 || self.input_size % 32 != 0 {
+        if self.input_size < 32 || !self.input_size.is_multiple_of(32) {
             return Err(invalid(
                 "input_size",
                 format!("{} must be a positive multiple of 32", self.input_size),

@@ -301,7 +301,7 @@ mod tests {
         let brighter = bench.settle(&mut exposure, [1.25; 3], ramp);
         assert!(close(brighter, [0.8; 3]), "gains {brighter:?}");
         // A checkerboard of 16 px squares where the card was: not the same surface.
-        let checks = |x: u32, y: u32| [if (x / 16 + y / 16) % 2 == 0 { 30.0 } else { 220.0 }; 3];
+        let checks = |x: u32, y: u32| [[30.0, 220.0][((x / 16 + y / 16) % 2) as usize]; 3];
         assert_eq!(bench.update(&mut exposure, [1.0; 3], checks), brighter);
         // Clipped pixels give no ratio: none left, the gains stay.
         assert_eq!(bench.update(&mut exposure, [1.0; 3], |_, _| [255.0; 3]), brighter);

@@ -95,7 +95,7 @@ impl<T> Backlog<T> {
         let mut k = 0;
         self.frames.retain(|_| {
             k += 1;
-            (n - k) % 2 == 0
+            (n - k).is_multiple_of(2)
         });
         if self.frames.len() == n {
             self.frames.clear();

@@ -71,7 +71,7 @@ fn block_sum(block: &[u32], format: PixelFormat) -> [u32; 3] {
 /// The left eye of a side-by-side frame shrunk by `step` (a [`factor`]); `None` when the
 /// frame is not complete or `step` does not suit its format.
 pub fn left_eye(frame: &SbsBytes, step: usize) -> Option<RgbImage> {
-    let whole_pairs = frame.format == PixelFormat::Rgb8 || step % 2 == 0;
+    let whole_pairs = frame.format == PixelFormat::Rgb8 || step.is_multiple_of(2);
     if !frame.is_complete() || step == 0 || !whole_pairs {
         return None;
     }

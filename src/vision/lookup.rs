@@ -397,7 +397,7 @@ impl SbsBytes<'_> {
         let row = 2 * self.width * self.format.bytes_per_pixel();
         self.width > 0
             && self.height > 0
-            && (self.format == PixelFormat::Rgb8 || self.width % 2 == 0)
+            && (self.format == PixelFormat::Rgb8 || self.width.is_multiple_of(2))
             && self.row_stride >= row
             && self.bytes.len() >= self.row_stride * (self.height - 1) + row
     }
@@ -428,7 +428,7 @@ impl SbsBytes<'_> {
             PixelFormat::Yuyv => {
                 let i = row + (eye * self.width + (u & !1)) * 2;
                 let q = self.bytes.get(i..i + 4)?;
-                let (r, g, b) = yuv_to_rgb(if u % 2 == 0 { q[0] } else { q[2] }, q[1], q[3]);
+                let (r, g, b) = yuv_to_rgb(if u.is_multiple_of(2) { q[0] } else { q[2] }, q[1], q[3]);
                 Some([r, g, b])
             }
         }

@@ -16,6 +16,9 @@ use crate::vision::frame::Region;
 use crate::vision::lookup::SbsBytes;
 use crate::vision::simd::avx2_multiversion;
 
+mod sample;
+use sample::Samples;
+
 /// One eye's brightness (HSV value, the maximum of R, G and B), row-major, and its
 /// detail: the brightness minus its 5 × 5 mean, which keeps only the fine texture.
 #[derive(Debug, Clone)]
@@ -102,7 +105,7 @@ impl Brightness {
         px.clear();
         for v in rows.clone() {
             match frame.rgb_row(eye, v, cols.clone()) {
-                Some(row) => px.extend(row.chunks_exact(3).map(hsv_value)),
+                Some(row) => hsv_row(row, px),
                 None => px.extend(
                     cols.clone()
                         .map(|u| frame.rgb_at(eye, u, v).map_or(0.0, |p| hsv_value(&p))),
@@ -127,32 +130,21 @@ impl Brightness {
         self.origin = (origin.0 as f32, origin.1 as f32);
         (self.width, self.height) = (width, height);
         self.px.clear();
-        self.px.extend(values.iter().zip(detail.iter()).map(|(&a, &d)| [a, d]));
+        pair_up(values, detail, &mut self.px);
     }
+}
 
-    /// Bilinear samples of the brightness and the detail at pixel `(u, v)`, and the
-    /// variance of the noise in that detail sample; `None` outside the image.
-    #[inline]
-    fn sample(&self, u: f32, v: f32) -> Option<(f32, f32, f32)> {
-        let (u, v) = (u - self.origin.0, v - self.origin.1);
-        if !(u >= 0.0 && v >= 0.0) {
-            return None;
-        }
-        let (x0, y0) = (u as usize, v as usize);
-        if x0 + 1 >= self.width || y0 + 1 >= self.height {
-            return None;
-        }
-        let (fx, fy) = (u - x0 as f32, v - y0 as f32);
-        let i = y0 * self.width + x0;
-        let w = self.width;
-        let p = &self.px;
-        let at = |k: usize| {
-            let top = p[i][k] + fx * (p[i + 1][k] - p[i][k]);
-            let bottom = p[i + w][k] + fx * (p[i + w + 1][k] - p[i + w][k]);
-            top + fy * (bottom - top)
-        };
-        let w2 = ((1.0 - fx).powi(2) + fx * fx) * ((1.0 - fy).powi(2) + fy * fy);
-        Some((at(0), at(1), self.noise_var * w2))
+avx2_multiversion! {
+    /// Appends the HSV value of each RGB8 pixel of `row`.
+    fn hsv_row(row: &[u8], out: &mut Vec<f32>) {
+        out.extend(row.chunks_exact(3).map(hsv_value));
+    }
+}
+
+avx2_multiversion! {
+    /// Appends each pixel's brightness and detail side by side.
+    fn pair_up(values: &[f32], detail: &[f32], out: &mut Vec<[f32; 2]>) {
+        out.extend(values.iter().zip(detail).map(|(&a, &d)| [a, d]));
     }
 }
 
@@ -195,35 +187,59 @@ fn box_mean(px: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
     out
 }
 
-/// `out` = the box mean of `px` (see `box_mean`): a pass along each row into `rows`,
-/// then one adding whole rows (in memory order, not down columns). Each buffer is
-/// written before it is read (a fresh buffer's pages are then mapped once, not on a
-/// read and again on the write).
-fn box_mean_into(px: &[f32], w: usize, h: usize, r: usize, rows: &mut Vec<f32>, out: &mut Vec<f32>) {
-    rows.clear();
-    out.clear();
-    if w == 0 || h == 0 {
-        out.extend(px.iter().map(|_| 0.0));
-        return;
-    }
-    let window = |k: usize, len: usize| (k.saturating_sub(r), (k + r).min(len - 1));
-    for src in px.chunks_exact(w) {
-        rows.extend((0..w).map(|k| {
-            let (a, b) = window(k, w);
-            src[a..=b].iter().sum::<f32>() / (b - a + 1) as f32
-        }));
-    }
-    for y in 0..h {
-        let (a, b) = window(y, h);
-        let start = out.len();
-        out.extend_from_slice(&rows[a * w..(a + 1) * w]);
-        let dst = &mut out[start..];
-        for src in rows[(a + 1) * w..(b + 1) * w].chunks_exact(w) {
-            dst.iter_mut().zip(src).for_each(|(d, s)| *d += s);
+avx2_multiversion! {
+    /// `out` = the box mean of `px` (see `box_mean`): a pass along each row into `rows`,
+    /// then one adding whole rows (in memory order, not down columns). Each buffer is
+    /// written before it is read (a fresh buffer's pages are then mapped once, not on a
+    /// read and again on the write).
+    fn box_mean_into(px: &[f32], w: usize, h: usize, r: usize, rows: &mut Vec<f32>, out: &mut Vec<f32>) {
+        rows.clear();
+        out.clear();
+        if w == 0 || h == 0 {
+            out.extend(px.iter().map(|_| 0.0));
+            return;
         }
-        let n = (b - a + 1) as f32;
-        dst.iter_mut().for_each(|d| *d /= n);
+        let window = |k: usize, len: usize| (k.saturating_sub(r), (k + r).min(len - 1));
+        for src in px.chunks_exact(w) {
+            let edge = |k: usize| {
+                let (a, b) = window(k, w);
+                src[a..=b].iter().sum::<f32>() / (b - a + 1) as f32
+            };
+            if w <= 2 * r {
+                rows.extend((0..w).map(edge));
+                continue;
+            }
+            rows.extend((0..r).map(edge));
+            add_windows(src, 2 * r + 1, rows);
+            rows.extend((w - r..w).map(edge));
+        }
+        for y in 0..h {
+            let (a, b) = window(y, h);
+            let start = out.len();
+            out.extend_from_slice(&rows[a * w..(a + 1) * w]);
+            let dst = &mut out[start..];
+            for src in rows[(a + 1) * w..(b + 1) * w].chunks_exact(w) {
+                dst.iter_mut().zip(src).for_each(|(d, s)| *d += s);
+            }
+            let n = (b - a + 1) as f32;
+            dst.iter_mut().for_each(|d| *d /= n);
+        }
     }
+}
+
+/// Appends the mean of each whole window of `n` values of `src`, in order: whole
+/// slices added one after another (the loop vectorises), the same sums as adding each
+/// window's values from its first.
+#[inline(always)]
+fn add_windows(src: &[f32], n: usize, out: &mut Vec<f32>) {
+    let len = src.len() + 1 - n;
+    let start = out.len();
+    out.extend_from_slice(&src[..len]);
+    let sums = &mut out[start..];
+    for j in 1..n {
+        sums.iter_mut().zip(&src[j..j + len]).for_each(|(d, s)| *d += s);
+    }
+    sums.iter_mut().for_each(|d| *d /= n as f32);
 }
 
 /// The texture terms of one candidate, each a normalised correlation in `[-1, 1]`
@@ -358,13 +374,17 @@ pub(super) fn both_eyes(
     let right = PointProjector::new(&rig.right, &(rig.right_from_left * left_from_model), c);
     let inside = EdgeMargin::new(points, &left);
     let mut px = [[0.0f32; BATCH]; 4];
+    let mut seen = [Samples::new(), Samples::new()];
     for (xs, ys, ms) in batches(points) {
         let [ul, vl, ur, vr] = &mut px;
         project_batch(&left, xs, ys, ul, vl);
         project_batch(&right, xs, ys, ur, vr);
+        let [sl, sr] = &mut seen;
+        eyes[0].sample_batch(ul, vl, sl);
+        eyes[1].sample_batch(ur, vr, sr);
         for (i, ((&x, &y), &m)) in xs.iter().zip(ys).zip(ms).enumerate() {
-            if let (Some(a), Some(b)) = (eyes[0].sample(ul[i], vl[i]), eyes[1].sample(ur[i], vr[i])) {
-                visit(inside.holds(x, y), m, a, b);
+            if sl.seen(i) && sr.seen(i) {
+                visit(inside.holds(x, y), m, sl.at(i), sr.at(i));
             }
         }
     }
@@ -441,11 +461,13 @@ pub fn structure_in(
     let project = PointProjector::new(cam, &(left_from_hand * c.hand_from_model()), c);
     let mut ncc = Ncc::default();
     let [mut us, mut vs] = [[0.0f32; BATCH]; 2];
+    let mut seen = Samples::new();
     for (xs, ys, ms) in batches(points) {
         project_batch(&project, xs, ys, &mut us, &mut vs);
-        for ((&u, &v), &m) in us.iter().zip(&vs).zip(ms) {
-            if let Some((a, _, _)) = eye.sample(u, v) {
-                ncc.add(m as f32, a);
+        eye.sample_batch(&us, &vs, &mut seen);
+        for (i, &m) in ms.iter().enumerate() {
+            if seen.seen(i) {
+                ncc.add(m as f32, seen.value(i));
             }
         }
     }
