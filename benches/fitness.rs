@@ -68,6 +68,24 @@ fn fixture() -> &'static Fixture {
     })
 }
 
+impl Fixture {
+    /// The example frame as the camera sends it in `format`.
+    fn frame(&self, format: PixelFormat) -> SbsBytes<'_> {
+        let (w, h) = self.images.eye_size();
+        let bytes = match format {
+            PixelFormat::Rgb8 => &self.sbs,
+            PixelFormat::Yuyv => &self.yuyv,
+        };
+        SbsBytes {
+            bytes,
+            width: w as usize,
+            height: h as usize,
+            row_stride: 2 * w as usize * format.bytes_per_pixel(),
+            format,
+        }
+    }
+}
+
 /// The kernel on random visible individuals at full resolution, one thread and all cores.
 #[divan::bench(args = [1, 0])]
 fn kernel(bencher: Bencher, threads: usize) {
@@ -87,19 +105,8 @@ fn kernel(bencher: Bencher, threads: usize) {
 #[divan::bench(args = [PixelFormat::Rgb8, PixelFormat::Yuyv])]
 fn colour_prep_eye(bencher: Bencher, format: PixelFormat) {
     let f = fixture();
-    let (w, h) = f.images.eye_size();
-    let (w, h) = (w as usize, h as usize);
-    let bytes = match format {
-        PixelFormat::Rgb8 => &f.sbs,
-        PixelFormat::Yuyv => &f.yuyv,
-    };
-    let frame = SbsBytes {
-        bytes,
-        width: w,
-        height: h,
-        row_stride: 2 * w * format.bytes_per_pixel(),
-        format,
-    };
+    let frame = f.frame(format);
+    let (w, h) = (frame.width, frame.height);
     let rule = f.prepared.scorer.texel_rule();
     let mut image = LookupImage::with_capacity(w, h);
     let all = Region::all(w, h);
@@ -145,14 +152,7 @@ fn texture_terms(bencher: Bencher) {
 #[divan::bench]
 fn brightness_region(bencher: Bencher) {
     let f = fixture();
-    let (w, h) = f.images.eye_size();
-    let frame = SbsBytes {
-        bytes: &f.sbs,
-        width: w as usize,
-        height: h as usize,
-        row_stride: 6 * w as usize,
-        format: PixelFormat::Rgb8,
-    };
+    let frame = f.frame(PixelFormat::Rgb8);
     let region = Region {
         cols: 440..840,
         rows: 210..510,

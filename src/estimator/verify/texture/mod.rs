@@ -374,12 +374,12 @@ pub(super) fn both_eyes(
     let right = PointProjector::new(&rig.right, &(rig.right_from_left * left_from_model), c);
     let inside = EdgeMargin::new(points, &left);
     let mut px = [[0.0f32; BATCH]; 4];
-    let mut seen = [Samples::new(), Samples::new()];
+    let mut samples = [Samples::new(), Samples::new()];
     for (xs, ys, ms) in batches(points) {
         let [ul, vl, ur, vr] = &mut px;
         project_batch(&left, xs, ys, ul, vl);
         project_batch(&right, xs, ys, ur, vr);
-        let [sl, sr] = &mut seen;
+        let [sl, sr] = &mut samples;
         eyes[0].sample_batch(ul, vl, sl);
         eyes[1].sample_batch(ur, vr, sr);
         for (i, ((&x, &y), &m)) in xs.iter().zip(ys).zip(ms).enumerate() {
@@ -461,13 +461,13 @@ pub fn structure_in(
     let project = PointProjector::new(cam, &(left_from_hand * c.hand_from_model()), c);
     let mut ncc = Ncc::default();
     let [mut us, mut vs] = [[0.0f32; BATCH]; 2];
-    let mut seen = Samples::new();
+    let mut samples = Samples::new();
     for (xs, ys, ms) in batches(points) {
         project_batch(&project, xs, ys, &mut us, &mut vs);
-        eye.sample_batch(&us, &vs, &mut seen);
+        eye.sample_batch(&us, &vs, &mut samples);
         for (i, &m) in ms.iter().enumerate() {
-            if seen.seen(i) {
-                ncc.add(m as f32, seen.value(i));
+            if samples.seen(i) {
+                ncc.add(m as f32, samples.value(i));
             }
         }
     }
@@ -490,6 +490,7 @@ fn seen_weight(share: f64, partial_view: bool) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::vision::frame::StereoImages;
     use crate::vision::PixelFormat;
 
     /// A `w × h` pseudo-random RGB image.
@@ -502,13 +503,8 @@ mod tests {
 
     /// The RGB8 side-by-side bytes of two eyes of the same size.
     fn side_by_side(left: &RgbImage, right: &RgbImage) -> Vec<u8> {
-        let mut bytes = Vec::new();
-        for y in 0..left.height() {
-            for eye in [left, right] {
-                (0..eye.width()).for_each(|x| bytes.extend(eye.get_pixel(x, y).0));
-            }
-        }
-        bytes
+        let (left, right) = (left.clone(), right.clone());
+        StereoImages { left, right }.to_sbs().into_raw()
     }
 
     /// `bytes` as a side-by-side RGB8 frame of two `w × h` eyes.

@@ -45,17 +45,18 @@ impl Samples {
 
 impl Brightness {
     /// Bilinear samples of the brightness and the detail at the pixels `(us[i], vs[i])`
-    /// of a batch, and the variance of the noise in each detail sample; `seen[i]` false
-    /// outside the eye. The whole batch is sampled: entries past the caller's points
-    /// are not used.
+    /// of a batch, and the variance of the noise in each detail sample; not
+    /// [`Samples::seen`] outside the eye. The whole batch is sampled: entries past the
+    /// caller's points are not used.
     pub(super) fn sample_batch(&self, us: &[f32; BATCH], vs: &[f32; BATCH], out: &mut Samples) {
         if self.width < 2 || self.height < 2 {
             out.seen.fill(0);
             return;
         }
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, and the eye has at least 2 × 2 pixels.
+        if self.px.len() < avx2::MAX_PIXELS && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, and the eye has at least 2 × 2 pixels and
+            // fewer than `avx2::MAX_PIXELS`.
             return unsafe { avx2::sample_batch(self, us, vs, out) };
         }
         portable(self, us, vs, out);
@@ -67,6 +68,7 @@ impl Brightness {
 fn portable(eye: &Brightness, us: &[f32; BATCH], vs: &[f32; BATCH], out: &mut Samples) {
     let (w, h) = (eye.width as i64, eye.height as i64);
     let p = &eye.px[..eye.width * eye.height];
+    out.seen.fill(0);
     for i in 0..BATCH {
         let (u, v) = (us[i] - eye.origin.0, vs[i] - eye.origin.1);
         let (x0, y0) = (u as i64, v as i64);
@@ -77,9 +79,6 @@ fn portable(eye: &Brightness, us: &[f32; BATCH], vs: &[f32; BATCH], out: &mut Sa
         let at = |j: usize| lerp2(a[j], b[j], c[j], d[j], fx, fy);
         let noise = eye.noise_var * noise_weight(fx, fy);
         (out.value[i], out.detail[i], out.noise[i]) = (at(0), at(1), noise);
-        if i % 8 == 0 {
-            out.seen[i / 8] = 0;
-        }
         out.seen[i / 8] |= u8::from(inside) << (i % 8);
     }
 }
@@ -109,10 +108,14 @@ mod avx2 {
     /// Lanes per vector.
     const LANES: usize = 8;
 
+    /// Pixels an eye sampled here has fewer of: their indices are 32-bit lanes.
+    pub(super) const MAX_PIXELS: usize = 1 << 30;
+
     /// [`super::portable`] eight points at a time.
     ///
     /// # Safety
-    /// The CPU supports AVX2, and the eye has at least 2 × 2 pixels (and fewer than 2³⁰).
+    /// The CPU supports AVX2, and the eye has at least 2 × 2 pixels and fewer than
+    /// [`MAX_PIXELS`].
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn sample_batch(eye: &Brightness, us: &[f32; BATCH], vs: &[f32; BATCH], out: &mut Samples) {
         let (w, h) = (eye.width as i32, eye.height as i32);
