@@ -27,15 +27,15 @@ use photopose::estimator::tracking::{StreamTracker, TrackState};
 use play::play;
 
 /// Regression floors of each take's median success share over the timings: the
-/// figures of 2026-12-04 with the texture terms on tracking frames (sweep 46 %,
-/// sweep-60fps 0 %, yuyv 59 %, light 87 %, occlude 59 %, leave 50 %, approach 32 %) less
-/// a margin. They catch a change that makes tracking worse; the target (95 % at
-/// every timing) is reported, reached or not, and not asserted. `approach` was 41 %
-/// before the texture terms: it is the one take that lost.
+/// figures of 2026-12-05, with blurred acquisitions followed in doubt and the eyes'
+/// brightness read where blur flattened the detail (sweep 82 %, sweep-60fps 49 %, yuyv
+/// 82 %, light 87 %, occlude 59 %, leave 50 %, approach 32 %), less a margin. They catch
+/// a change that makes tracking worse; the target (95 % at every timing) is
+/// reported, reached or not, and not asserted.
 const FLOORS: [(&str, f64); 7] = [
-    ("sweep", 0.33),
-    ("sweep-60fps", 0.0),
-    ("yuyv", 0.45),
+    ("sweep", 0.70),
+    ("sweep-60fps", 0.35),
+    ("yuyv", 0.70),
     ("light", 0.74),
     ("occlude", 0.45),
     ("leave", 0.37),
@@ -43,11 +43,10 @@ const FLOORS: [(&str, f64); 7] = [
 ];
 
 /// A ceiling on the `tracking` poses more than 50 mm or 20° off, over every take and
-/// timing: 3 on 2026-12-04 with the texture terms on tracking frames (on `sweep`: the
-/// tilt 21–23° off, the position within 6 mm), 1 before them, 18 before the climb. With
-/// the tracker seeded 7 there were 3 (13 before the texture terms;
-/// docs/tracking-sequences.md). The target is 0.
-const WRONG_CEILING: usize = 4;
+/// timing: 0 on 2026-12-05 (and with the tracker seeded 7), 3 before (on `sweep`: the
+/// tilt 21–23° off, the position within 6 mm), 18 before the climb
+/// (docs/tracking-sequences.md). The target is 0.
+const WRONG_CEILING: usize = 1;
 
 /// Every take at every timing: the tables, what happened in it, the promises, the floors
 /// and the ceiling.
@@ -93,6 +92,38 @@ fn tracking_sequences() {
     }
 }
 
+/// The `sweep` take with the built-in configuration and the tests' hand–eye transform,
+/// frame by frame, and a fresh tracker of its card.
+struct Sweep {
+    take: Scenario,
+    film: Film,
+    model: photopose::estimator::model::PhotoModel,
+}
+
+impl Sweep {
+    fn new() -> (Self, StreamTracker) {
+        let take = Scenario::named("sweep").unwrap();
+        let mut config = photopose::config::Config::load(None).unwrap();
+        config.left_from_hand = crate::scenes::hand_eye();
+        let root = crate::common::repo("");
+        let film = Film::new(&take, &root, &config).unwrap();
+        let model = Film::model(&take, &root, &config).unwrap();
+        let tracker = StreamTracker::new(model.clone(), config);
+        (Self { take, film, model }, tracker)
+    }
+
+    /// Frame `i` tracked: the pose's errors (mm, relative size, degrees) and status.
+    fn step(&mut self, tracker: &mut StreamTracker, i: usize) -> ([f64; 3], TrackState) {
+        let bytes = self.film.frame(i);
+        let est = play::step(tracker, self.film.rig(), &bytes, self.take.yuyv);
+        let size = est.best.size_mm(self.model.l_p, self.model.b_p);
+        (
+            self.film.judge(i, &est.best.hand_from_model(), size, true).errors,
+            est.state,
+        )
+    }
+}
+
 /// The estimator process's catch-up, on `sweep` (600 mm/s, blur): a card acquired on
 /// the frame at 0.5 s is followed through the 15 frames that arrived during the
 /// acquisition's 0.5 s, each within 10 mm and 15° (measured: 0.9–5.1 mm; the tilt drifts
@@ -101,21 +132,9 @@ fn tracking_sequences() {
 /// further, and the card was lost there.
 #[test]
 fn an_acquired_card_is_followed_through_the_frames_kept_during_its_search() {
-    let take = Scenario::named("sweep").unwrap();
-    let mut config = photopose::config::Config::load(None).unwrap();
-    config.left_from_hand = crate::scenes::hand_eye();
-    let root = crate::common::repo("");
-    let mut film = Film::new(&take, &root, &config).unwrap();
-    let model = Film::model(&take, &root, &config).unwrap();
-    let mut tracker = StreamTracker::new(model.clone(), config);
-    let mut errors = |tracker: &mut StreamTracker, i: usize| {
-        let bytes = film.frame(i);
-        let est = play::step(tracker, film.rig(), &bytes, take.yuyv);
-        let size = est.best.size_mm(model.l_p, model.b_p);
-        (film.judge(i, &est.best.hand_from_model(), size, true).errors, est.state)
-    };
+    let (mut sweep, mut tracker) = Sweep::new();
     assert!(tracker.will_acquire());
-    let (acquired, state) = errors(&mut tracker, 15);
+    let (acquired, state) = sweep.step(&mut tracker, 15);
     assert_eq!(state, TrackState::Tracking, "acquisition {acquired:?}");
     tracker.follow_on();
     for i in 16..=30 {
@@ -123,11 +142,45 @@ fn an_acquired_card_is_followed_through_the_frames_kept_during_its_search() {
             !tracker.will_acquire(),
             "frame {i}: no whole-frame search while following"
         );
-        let ([mm, _, deg], state) = errors(&mut tracker, i);
+        let ([mm, _, deg], state) = sweep.step(&mut tracker, i);
         println!("frame {i}: {mm:.1} mm, {deg:.1}°, {state:?}");
         assert!(mm < 10.0 && deg < 15.0, "frame {i}: {mm:.1} mm, {deg:.1}° off");
         if i == 30 {
             assert_eq!(state, TrackState::Tracking);
+        }
+    }
+}
+
+/// A card acquired at its fastest, on `sweep`'s first frame (600 mm/s, about 10 px of
+/// blur), where the verdict cannot confirm the pose: the acquisition is followed in
+/// doubt through the next frames instead of searched afresh. No frame is `tracking`
+/// more than 50 mm or 20° off (measured: `searching` on frames 1–6, 14–20° off;
+/// `tracking` from frame 7, 15° off, within 10° from frame 10), and from frame 12
+/// (0.4 s) every frame is `tracking` within 10 mm, 10 % and 10° (measured up to 30:
+/// 4.2 mm, 8.6 %, 6.6°). Before, this acquisition was searched afresh and nothing was
+/// `tracking` until a second one was confirmed.
+#[test]
+fn a_blurred_acquisition_is_followed_in_doubt_until_the_eyes_agree() {
+    let (mut sweep, mut tracker) = Sweep::new();
+    let (acquired, state) = sweep.step(&mut tracker, 0);
+    println!("acquisition: {acquired:.1?}, {state:?}");
+    assert_ne!(state, TrackState::Tracking, "a blurred card the verdict cannot confirm");
+    tracker.follow_on();
+    assert!(!tracker.will_acquire(), "followed in doubt, not searched afresh");
+    for i in 1..=30 {
+        let ([mm, size, deg], state) = sweep.step(&mut tracker, i);
+        println!("frame {i}: {mm:.1} mm, {:.1} %, {deg:.1}°, {state:?}", size * 100.0);
+        let tracking = state == TrackState::Tracking;
+        assert!(
+            !tracking || (mm < 50.0 && deg < 20.0),
+            "frame {i}: tracking {mm:.1} mm, {deg:.1}° off"
+        );
+        if i >= 12 {
+            assert!(
+                tracking && mm < 10.0 && size < 0.1 && deg < 10.0,
+                "frame {i}: {state:?}, {mm:.1} mm, {:.1} %, {deg:.1}° off",
+                size * 100.0
+            );
         }
     }
 }

@@ -92,6 +92,7 @@ impl Prepared {
             points: &self.texture_points,
             weight,
             below_level: levels - 1,
+            brightness_where_flat: false,
         })
     }
 
@@ -165,8 +166,11 @@ impl Prepared {
                 self.brightness.eyes(0),
                 &self.scorer.left_from_hand,
                 p,
-                true,
-                self.scorer.partial_view,
+                texture::Reading {
+                    denoised: true,
+                    partial_view: self.scorer.partial_view,
+                    brightness_where_flat: false,
+                },
             )
         };
         let at = texture(best);

@@ -211,13 +211,21 @@ impl<'a> Problem<'a> {
         self.terms_on(t, l, points, c, false)
     }
 
-    /// The texture terms at candidate `c` on full resolution, denoised, as the verdict
-    /// reads them (zero without a texture term).
+    /// The texture terms at candidate `c` on full resolution, denoised, on the detail
+    /// alone, as the verdict reads them (zero without a texture term). A tracking
+    /// frame's status reads them so although its ranking may read the brightness where
+    /// the detail is flat ([`TextureTerm::brightness_where_flat`]): judged on the
+    /// brightness too, the card at 1200 mm/s (the 60 fps play of the sweep) had 116–120
+    /// `tracking` poses more than 50 mm or 20° off in 25 s, against 2–11 so.
     pub fn texture_judged(&self, c: &PoseSize) -> Texture {
         let Some(t) = &self.texture else {
             return Texture::default();
         };
-        self.terms_on(t, 0, &t.points[0], c, true)
+        let detail_only = TextureTerm {
+            brightness_where_flat: false,
+            ..*t
+        };
+        self.terms_on(&detail_only, 0, &t.points[0], c, true)
     }
 
     /// [`texture::score`] of `c` on level `l` with `points`.
@@ -229,8 +237,11 @@ impl<'a> Problem<'a> {
             t.pyramid.eyes(l),
             &self.scorer.left_from_hand,
             c,
-            denoised,
-            self.scorer.partial_view,
+            texture::Reading {
+                denoised,
+                partial_view: self.scorer.partial_view,
+                brightness_where_flat: t.brightness_where_flat,
+            },
         )
     }
 

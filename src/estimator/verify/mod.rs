@@ -65,6 +65,9 @@ pub struct TextureTerm<'a> {
     /// Levels below this (finer) add the terms to every evaluation; coarser levels
     /// leave them to the acquisition scan, which uses them itself.
     pub below_level: usize,
+    /// Whether the stereo term reads the brightness where the detail is flat
+    /// ([`texture::Reading::brightness_where_flat`]): a tracking frame's ranking only.
+    pub brightness_where_flat: bool,
 }
 
 /// The verdict on a result: whether the object is judged found there, and how sure.

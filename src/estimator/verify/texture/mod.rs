@@ -293,30 +293,75 @@ impl Ncc {
         self.corrected(false)
     }
 
-    /// The correlation; `denoised`: of the signals without their noise (the classic
-    /// correction for attenuation: the noise variance leaves the denominator), so that
-    /// a noisy image of the right pose still correlates near 1.
-    fn corrected(&self, denoised: bool) -> f64 {
-        if self.n < 8.0 {
-            return 0.0;
-        }
+    /// The two signals' variances; `denoised`: less their noise.
+    fn variances(&self, denoised: bool) -> (f64, f64) {
         let (na, nb) = if denoised {
             (self.noise_a / self.n, self.noise_b / self.n)
         } else {
             (0.0, 0.0)
         };
-        let va = self.saa / self.n - (self.sa / self.n).powi(2) - na;
-        let vb = self.sbb / self.n - (self.sb / self.n).powi(2) - nb;
-        if va < FLAT_STD * FLAT_STD || vb < FLAT_STD * FLAT_STD {
+        (
+            self.saa / self.n - (self.sa / self.n).powi(2) - na,
+            self.sbb / self.n - (self.sb / self.n).powi(2) - nb,
+        )
+    }
+
+    /// Whether either signal is flat (of at least 8 samples): what is left of the
+    /// detail of a card that motion blur or defocus smoothed.
+    fn flat(&self, denoised: bool) -> bool {
+        let (va, vb) = self.variances(denoised);
+        self.n >= 8.0 && (va < FLAT_STD * FLAT_STD || vb < FLAT_STD * FLAT_STD)
+    }
+
+    /// The correlation; `denoised`: of the signals without their noise (the classic
+    /// correction for attenuation: the noise variance leaves the denominator), so that
+    /// a noisy image of the right pose still correlates near 1. Zero for fewer than 8
+    /// samples or a flat signal.
+    fn corrected(&self, denoised: bool) -> f64 {
+        if self.n < 8.0 || self.flat(denoised) {
             return 0.0;
         }
+        let (va, vb) = self.variances(denoised);
         ((self.sab / self.n - self.sa * self.sb / (self.n * self.n)) / (va * vb).sqrt()).clamp(-1.0, 1.0)
     }
 }
 
+/// How [`score`] reads the texture terms.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Reading {
+    /// The stereo term corrected for the images' noise: their noise variance leaves the
+    /// correlation's denominator.
+    pub denoised: bool,
+    /// Robust mode's rule for a model partly out of view: a correlation over part of the
+    /// model counts by its view weight, not in proportion to the share seen.
+    pub partial_view: bool,
+    /// Where the detail is flat in either eye (motion blur), the stereo term correlates
+    /// the two eyes' brightness instead of being 0. A tracking frame's ranking only: a
+    /// whole-frame search or a status must not take a smooth wall's agreement with
+    /// itself for the card's.
+    pub brightness_where_flat: bool,
+}
+
+/// The stereo term from the correlations of the two eyes' `detail` and `brightness`
+/// at the same model points: the detail's, or, with `reading.brightness_where_flat`
+/// where the detail is flat, the brightness's. Motion blur across a card at 600 mm/s
+/// (10 px at 30 fps) leaves its detail flat in both eyes while the brightness still
+/// differs from point to point and agrees between the eyes only at the right depth and
+/// tilt. A tracking frame ranks its candidates so: they are near a followed pose. A
+/// whole-frame search and the status do not, as a smooth wall agrees with itself at
+/// many depths.
+fn stereo_term(detail: &Ncc, brightness: &Ncc, reading: Reading) -> f64 {
+    if reading.brightness_where_flat && detail.flat(reading.denoised) {
+        brightness.value()
+    } else {
+        detail.corrected(reading.denoised)
+    }
+}
+
 /// Both texture terms of candidate `c` (hand frame; `left_from_hand` the hand–eye
-/// transform) on images `[left, right]` seen through `rig`: stereo on the detail (with
-/// `denoised`, corrected for the images' noise), structure on the brightness itself.
+/// transform) on images `[left, right]` seen through `rig`, read as `reading` says:
+/// stereo on the detail (or, where it is flat, the brightness: [`Reading`]), structure
+/// on the brightness itself.
 ///
 /// The stereo term leaves out the points within `EDGE_PX` of the model's edge: their
 /// detail mixes in the background just beyond the card, which each eye sees from
@@ -328,10 +373,10 @@ pub fn score(
     eyes: [&Brightness; 2],
     left_from_hand: &Isometry3<f64>,
     c: &PoseSize,
-    denoised: bool,
-    partial_view: bool,
+    reading: Reading,
 ) -> Texture {
     let (mut stereo, mut model_left, mut model_right) = (Ncc::default(), Ncc::default(), Ncc::default());
+    let mut stereo_brightness = Ncc::default();
     both_eyes(
         points,
         rig,
@@ -343,14 +388,17 @@ pub fn score(
                 stereo.add(da, db);
                 stereo.noise_a += na as f64;
                 stereo.noise_b += nb as f64;
+                if reading.brightness_where_flat {
+                    stereo_brightness.add(a, b);
+                }
             }
             model_left.add(m as f32, a);
             model_right.add(m as f32, b);
         },
     );
-    let seen = seen_weight(model_left.n / points.inner_v.len().max(1) as f64, partial_view);
+    let seen = seen_weight(model_left.n / points.inner_v.len().max(1) as f64, reading.partial_view);
     Texture {
-        stereo: stereo.corrected(denoised) * seen,
+        stereo: stereo_term(&stereo, &stereo_brightness, reading) * seen,
         structure: (model_left.value() + model_right.value()) / 2.0 * seen,
     }
 }
@@ -516,6 +564,37 @@ mod tests {
             row_stride: 6 * w,
             format: PixelFormat::Rgb8,
         }
+    }
+
+    /// Running sums over pairs.
+    fn ncc_of(pairs: impl Iterator<Item = (f32, f32)>) -> Ncc {
+        let mut ncc = Ncc::default();
+        pairs.for_each(|(a, b)| ncc.add(a, b));
+        ncc
+    }
+
+    #[test]
+    fn where_the_detail_is_flat_the_stereo_term_can_read_the_brightness() {
+        let wave = |i: usize| 100.0 + 60.0 * (i as f32 * 0.05).sin();
+        // The same brightness in both eyes; detail of ±1 grey level (flat), unrelated.
+        let same = ncc_of((0..200).map(|i| (wave(i), wave(i) + 1.0)));
+        let flat = ncc_of((0..200).map(|i| (if i % 2 == 0 { 1.0 } else { -1.0 }, if i % 3 == 0 { 1.0 } else { -1.0 })));
+        let plain = Reading {
+            denoised: true,
+            ..Reading::default()
+        };
+        let blurred = Reading {
+            brightness_where_flat: true,
+            ..plain
+        };
+        assert_eq!(stereo_term(&flat, &same, plain), 0.0);
+        assert!((stereo_term(&flat, &same, blurred) - 1.0).abs() < 1e-6);
+        // At a wrong depth the eyes' brightness is shifted along the card: it agrees less.
+        let shifted = ncc_of((0..200).map(|i| (wave(i), wave(i + 20))));
+        assert!(stereo_term(&flat, &shifted, blurred) < 0.6);
+        // Where there is detail, it decides.
+        let opposed = ncc_of((0..200).map(|i| (10.0 * (i as f32 * 0.7).sin(), -10.0 * (i as f32 * 0.7).sin())));
+        assert!((stereo_term(&opposed, &same, blurred) + 1.0).abs() < 1e-6);
     }
 
     #[test]
