@@ -157,7 +157,7 @@ fn an_acquired_card_is_followed_through_the_frames_kept_during_its_search() {
 /// more than 50 mm or 20° off (measured: `searching` on frames 1–6, 14–20° off;
 /// `tracking` from frame 7, 15° off, within 10° from frame 10), and from frame 12
 /// (0.4 s) every frame is `tracking` within 10 mm, 10 % and 10° (measured up to 30:
-/// 4.2 mm, 8.6 %, 6.6°). Before, this acquisition was searched afresh and nothing was
+/// 2.5 mm, 8.6 %, 6.6°). Before, this acquisition was searched afresh and nothing was
 /// `tracking` until a second one was confirmed.
 #[test]
 fn a_blurred_acquisition_is_followed_in_doubt_until_the_eyes_agree() {

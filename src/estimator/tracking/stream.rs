@@ -52,11 +52,11 @@ const DOUBT_TEXTURE: [f64; 2] = [0.7, 0.75];
 /// The least structure term (the photo's pattern in the image) at which an acquisition
 /// the verdict rejects is followed in doubt rather than searched afresh. Motion blur
 /// flattens the detail that the verdict's stereo term and sharpness read, so a card
-/// found at 600 mm/s is rejected however right (on the sweep at 30 fps: within 3 mm and
-/// 5°, structure 0.72–0.93); searched afresh it cost another acquisition, 10–20 frames.
-/// Followed in doubt through the frames kept meanwhile, it is `tracking` only once a
-/// frame's two eyes agree ([`DOUBT_TEXTURE`]), and lost like any doubted pose. Results
-/// on the card's colours elsewhere read 0.25–0.65 and are searched afresh.
+/// found at 600 mm/s is rejected however right (on the sweep at 30 fps: within 6.2 mm
+/// and 5.7°, structure 0.72–0.94); searched afresh it cost another acquisition, 10–20
+/// frames. Followed in doubt through the frames kept meanwhile, it is `tracking` only
+/// once a frame's two eyes agree ([`DOUBT_TEXTURE`]), and lost like any doubted pose.
+/// Results on the card's colours elsewhere read 0.25–0.65 and are searched afresh.
 const DOUBTED_ACQUISITION: f64 = 0.7;
 
 /// Growth of the prepared window around the predicted model (with its outer strip), as a
