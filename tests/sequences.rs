@@ -27,19 +27,19 @@ use photopose::estimator::tracking::{StreamTracker, TrackState};
 use play::play;
 
 /// Regression floors of each take's median success share over the timings: the
-/// figures of 2026-12-05, with blurred acquisitions followed in doubt and the eyes'
-/// brightness read where blur flattened the detail (sweep 82 %, sweep-60fps 49 %, yuyv
-/// 82 %, light 87 %, occlude 59 %, leave 50 %, approach 32 %), less a margin. They catch
-/// a change that makes tracking worse; the target (95 % at every timing) is
-/// reported, reached or not, and not asserted.
+/// figures of 2026-12-05 (sweep 82 %, sweep-60fps 49 %, yuyv 82 %, light 87 %), and of
+/// the evening, with the card followed beyond the search space and tracking frames
+/// reading the eyes' similarity on the card alone (occlude 63 %, leave 60 %, approach
+/// 75 %), less a margin. They catch a change that makes tracking worse; the issue's
+/// target (95 % at every timing) is reported, reached or not, and not asserted.
 const FLOORS: [(&str, f64); 7] = [
     ("sweep", 0.70),
     ("sweep-60fps", 0.35),
     ("yuyv", 0.70),
     ("light", 0.74),
-    ("occlude", 0.45),
-    ("leave", 0.37),
-    ("approach", 0.20),
+    ("occlude", 0.50),
+    ("leave", 0.50),
+    ("approach", 0.60),
 ];
 
 /// A ceiling on the `tracking` poses more than 50 mm or 20° off, over every take and
@@ -92,17 +92,17 @@ fn tracking_sequences() {
     }
 }
 
-/// The `sweep` take with the built-in configuration and the tests' hand–eye transform,
-/// frame by frame, and a fresh tracker of its card.
-struct Sweep {
+/// A take with the built-in configuration and the tests' hand–eye transform, frame by
+/// frame, and a fresh tracker of its card.
+struct Take {
     take: Scenario,
     film: Film,
     model: photopose::estimator::model::PhotoModel,
 }
 
-impl Sweep {
-    fn new() -> (Self, StreamTracker) {
-        let take = Scenario::named("sweep").unwrap();
+impl Take {
+    fn new(name: &str) -> (Self, StreamTracker) {
+        let take = Scenario::named(name).unwrap();
         let mut config = photopose::config::Config::load(None).unwrap();
         config.left_from_hand = crate::scenes::hand_eye();
         let root = crate::common::repo("");
@@ -132,7 +132,7 @@ impl Sweep {
 /// further, and the card was lost there.
 #[test]
 fn an_acquired_card_is_followed_through_the_frames_kept_during_its_search() {
-    let (mut sweep, mut tracker) = Sweep::new();
+    let (mut sweep, mut tracker) = Take::new("sweep");
     assert!(tracker.will_acquire());
     let (acquired, state) = sweep.step(&mut tracker, 15);
     assert_eq!(state, TrackState::Tracking, "acquisition {acquired:?}");
@@ -161,7 +161,7 @@ fn an_acquired_card_is_followed_through_the_frames_kept_during_its_search() {
 /// `tracking` until a second one was confirmed.
 #[test]
 fn a_blurred_acquisition_is_followed_in_doubt_until_the_eyes_agree() {
-    let (mut sweep, mut tracker) = Sweep::new();
+    let (mut sweep, mut tracker) = Take::new("sweep");
     let (acquired, state) = sweep.step(&mut tracker, 0);
     println!("acquisition: {acquired:.1?}, {state:?}");
     assert_ne!(state, TrackState::Tracking, "a blurred card the verdict cannot confirm");
@@ -183,4 +183,38 @@ fn a_blurred_acquisition_is_followed_in_doubt_until_the_eyes_agree() {
             );
         }
     }
+}
+
+/// The `approach` ends 0.2 m from the hand (the built-in grasp holds the object at
+/// 150 mm), nearer than the search space reaches (`[search] z_mm` from 300 mm in the
+/// hand frame): the card is acquired inside it and followed beyond (`[tracking] reach`).
+/// Every frame beyond it is `tracking` within 20 mm, 10 % and 10° (measured on its 47
+/// frames: within 3.2 mm, 7.4 % and 1.3°). Before, the model stopped at the space's
+/// edge and the card was lost 0.1 s after crossing it.
+#[test]
+fn an_approach_is_followed_nearer_the_hand_than_the_search_space_reaches() {
+    let (mut approach, mut tracker) = Take::new("approach");
+    let near = photopose::config::Config::load(None).unwrap().search.z_mm[0];
+    let (acquired, state) = approach.step(&mut tracker, 60);
+    assert_eq!(state, TrackState::Tracking, "acquisition {acquired:?}");
+    tracker.follow_on();
+    let mut beyond = 0;
+    for i in 61..approach.take.frames() {
+        let ([mm, size, deg], state) = approach.step(&mut tracker, i);
+        let z = approach.film.truth(i).hand_from_model.translation.z;
+        if z >= near {
+            continue;
+        }
+        beyond += 1;
+        println!(
+            "frame {i}: {z:.0} mm from the hand, {mm:.1} mm, {:.1} %, {deg:.1}° off, {state:?}",
+            size * 100.0
+        );
+        assert!(
+            state == TrackState::Tracking && mm <= 20.0 && size <= 0.1 && deg <= 10.0,
+            "frame {i}, {z:.0} mm from the hand: {state:?}, {mm:.1} mm, {:.1} %, {deg:.1}° off",
+            size * 100.0
+        );
+    }
+    assert!(beyond >= 40, "only {beyond} frames beyond the search space");
 }

@@ -286,12 +286,13 @@ pub struct TrackingSettings {
     pub threads: usize,
     /// Gaussian mutation step, in normalised gene units.
     pub sigma: f64,
-    /// Below this `F` the object counts as not tracked (status `searching`).
+    /// Below this `F_L + F_R` (`F` without eq. 17's similarity factor) the object
+    /// counts as not tracked (status `searching`).
     pub min_fitness: f64,
-    /// The floor: a pose whose `F` is below this is published as `lost`, never
+    /// The floor: a pose whose `F_L + F_R` is below this is published as `lost`, never
     /// `tracking` or `searching` (0 ≤ `lost_fitness` ≤ `min_fitness`).
     pub lost_fitness: f64,
-    /// Below this share of the best `F` since the object was acquired the object counts
+    /// Below this share of the best `F_L + F_R` since the object was acquired it counts
     /// as not tracked either: a model that slipped onto part of its target scores well
     /// above `min_fitness` but far below what the whole target gave.
     pub min_fitness_share: f64,
@@ -301,6 +302,11 @@ pub struct TrackingSettings {
     pub lost_after_frames: usize,
     /// Generations of the one-shot robust search that (re)acquires the object.
     pub acquire_generations: usize,
+    /// How far beyond the `[search]` space an acquired object is followed and recovered,
+    /// as a share of the space's size along each axis on either side (0: not beyond).
+    /// The search space is where an object is looked for; a tracked one may come nearer
+    /// the hand than it (an approach to grasp) or leave it sideways.
+    pub reach: f64,
 }
 
 impl TrackingSettings {
@@ -349,6 +355,9 @@ impl TrackingSettings {
         if !(0.0..1.0).contains(&self.immigrants) {
             return Err(invalid("immigrants", format!("{} must lie in [0, 1)", self.immigrants)));
         }
+        if !(0.0..=MAX_REACH).contains(&self.reach) {
+            return Err(invalid("reach", format!("{} must lie in [0, {MAX_REACH}]", self.reach)));
+        }
         Ok(self)
     }
 }
@@ -368,9 +377,14 @@ impl Default for TrackingSettings {
             immigrants: 0.2,
             lost_after_frames: 30,
             acquire_generations: 300,
+            reach: 1.0,
         }
     }
 }
+
+/// The largest `[tracking] reach`: beyond it the tracked space would be mostly out of
+/// the cameras' view.
+const MAX_REACH: f64 = 2.0;
 
 /// `[model]`: how `photopose model` samples the photo.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -531,6 +545,14 @@ mod tests {
         };
         let e = SearchSpace::try_from(raw).unwrap_err().to_string();
         assert_eq!(e, "[search] size_mm: [0, 10] must be positive");
+        let tracking = TrackingSettings {
+            reach: 2.5,
+            ..TrackingSettings::default()
+        };
+        assert_eq!(
+            tracking.validate().unwrap_err().to_string(),
+            "[tracking] reach: 2.5 must lie in [0, 2]"
+        );
         let ga = GaSettings {
             survivors: 1.0,
             ..GaSettings::default()

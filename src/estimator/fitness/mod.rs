@@ -43,6 +43,14 @@ pub struct Fitness {
     pub score: f64,
 }
 
+impl Fitness {
+    /// `F_L + F_R`: `F` without eq. 17's similarity factor, on the same scale (2 for a
+    /// perfect match). The tracker judges its status on it.
+    pub fn sum(&self) -> f64 {
+        self.left + self.right
+    }
+}
+
 /// The share of a model's inner points that must land on the image for the part off
 /// it to cost nothing (robust mode, see [`view_weight`]).
 pub const FULL_VIEW: f64 = 0.75;
@@ -191,6 +199,11 @@ pub struct Scorer {
     /// each eye, and `g` punished that more than a model shrunk onto the visible part;
     /// the stereo terms check the depth instead.
     pub rank_by_sum: bool,
+    /// Read eq. 17's similarity factor on the inner points alone, with this width instead
+    /// of `[fitness] sigma` (the tracker's frames): the outer strip lies on whatever is
+    /// behind the card, which each eye sees at another place, the card itself alike.
+    /// `None`: the paper's, on all points.
+    pub inner_similarity: Option<f64>,
     /// Score each image on the points that land on it, weighted by [`view_weight`]
     /// (robust mode), instead of counting points off the image as mismatches (the
     /// paper). A card cut by the image's border then scores as its visible part does,
@@ -229,6 +242,7 @@ impl Scorer {
             min_extent_px: 0.0,
             stereo_weight: 0.0,
             rank_by_sum: false,
+            inner_similarity: None,
             partial_view: false,
             box_px: [model.l_p, model.b_p],
             reach_px: reach(model),
@@ -322,12 +336,7 @@ impl Scorer {
             all_seen(points, &mut counts);
         }
         let [fl, fr] = [0, 1].map(|eye| self.image_score(points, &counts, eye));
-        let g = if fl == 0.0 || fr == 0.0 {
-            0.0
-        } else {
-            let d = fl / fr - self.params.mu;
-            (-(d * d) / (2.0 * self.params.sigma * self.params.sigma)).exp()
-        };
+        let g = self.similarity(points, &counts, [fl, fr]);
         let f = (fl + fr) / 2.0 * (1.0 + g);
         let confirmed = self.confirmed_share(points, &counts);
         Fitness {
@@ -336,6 +345,35 @@ impl Scorer {
             right: fr,
             score: if self.rank_by_sum { fl + fr } else { f } + self.stereo_weight * confirmed,
         }
+    }
+
+    /// Eq. 17's similarity factor `g` of the image scores `[fl, fr]`; with
+    /// [`Scorer::inner_similarity`], of the two eyes' scores on the inner points alone,
+    /// with its width.
+    fn similarity(&self, points: &PointSet, counts: &kernel::Counts, [fl, fr]: [f64; 2]) -> f64 {
+        let ([a, b], sigma) = match self.inner_similarity {
+            Some(sigma) => ([0, 1].map(|eye| self.inner_score(points, counts, eye)), sigma),
+            None => ([fl, fr], self.params.sigma),
+        };
+        let unseen = fl == 0.0 || fr == 0.0;
+        if unseen || (self.inner_similarity.is_some() && (a <= 0.0 || b <= 0.0)) {
+            return 0.0;
+        }
+        let d = a / b - self.params.mu;
+        (-(d * d) / (2.0 * sigma * sigma)).exp()
+    }
+
+    /// Image `eye`'s score on the inner points alone (1: every one close), over those on
+    /// the image with [`Scorer::partial_view`].
+    fn inner_score(&self, points: &PointSet, counts: &kernel::Counts, eye: usize) -> f64 {
+        let pr = &self.params;
+        let n = if self.partial_view {
+            counts.inner_seen[eye] as f64
+        } else {
+            points.inner_x.len() as f64
+        };
+        let close = counts.close[eye] as f64;
+        (pr.e1 * close + pr.e2 * (n - close)) / (pr.e1 * n.max(1.0))
     }
 
     /// Whether the kernel must count the points that land on each of `views` (image
@@ -713,5 +751,34 @@ mod tests {
         // F_L = 1, F_R = 0 → g = 0, F = 0.5.
         assert_eq!(f.right, 0.0);
         assert!((f.f - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_inner_similarity_reads_the_card_not_what_lies_behind_its_strip() {
+        // The right eye sees the card's red around it too (a wall of its colour behind
+        // the strip, seen elsewhere by the left eye): its outer points look like the
+        // target, the inner ones match as in the left eye.
+        let mut lv = level(|x, y| {
+            if (8..=11).contains(&x) && (8..=11).contains(&y) {
+                0
+            } else {
+                GRAY
+            }
+        });
+        lv.right.px.iter_mut().for_each(|c| c.code = 0);
+        let pts = PointSet::from_model(&model(), &FitnessParams::default(), 1);
+        let mut s = scorer(OuterRule::ColorClass);
+        let paper = score(&s, &pts, &lv, &candidate());
+        // F_L = 1, F_R = (4·2 − 4·1.9) / 10 = 0.04: g ≈ 0, F ≈ 0.52.
+        assert!((paper.right - 0.04).abs() < 1e-12, "{paper:?}");
+        assert!((paper.f - 0.52).abs() < 1e-9, "{paper:?}");
+        s.inner_similarity = Some(0.2);
+        let inner = score(&s, &pts, &lv, &candidate());
+        // The inner points agree: g = 1, F = F_L + F_R.
+        assert!((inner.f - 1.04).abs() < 1e-12, "{inner:?}");
+        assert_eq!(inner.sum(), paper.sum());
+        // Where the card itself differs (the right eye sees no red), g falls again.
+        lv.right.px.iter_mut().for_each(|c| c.code = 120);
+        assert!(score(&s, &pts, &lv, &candidate()).f < 0.6);
     }
 }

@@ -77,20 +77,20 @@ impl LivePopulation {
         genes.push(best);
         while genes.len() < n {
             let mut g = best;
-            mutate(&mut g, sigma, rng);
+            mutate(&mut g, &problem.bounds, sigma, rng);
             genes.push(g);
         }
         self.pop.fit.resize(genes.len(), Fitness::default());
         problem.evaluate_batch(0, genes, &mut self.pop.fit);
     }
 
-    /// Moves every individual by `velocity` (clamped into the unit cube) and scores the
+    /// Moves every individual by `velocity` (clamped into the problem's bounds) and scores the
     /// whole population on the problem's frame: the previous frame's population, where
     /// the motion so far predicts it on the new one.
     pub fn shift(&mut self, problem: &Problem, velocity: &Genes) {
         for g in self.pop.genes.iter_mut() {
-            for (v, d) in g.iter_mut().zip(velocity) {
-                *v = (*v + d).clamp(0.0, 1.0);
+            for (i, (v, d)) in g.iter_mut().zip(velocity).enumerate() {
+                *v = problem.bounds.clamp(i, *v + d);
             }
         }
         problem.evaluate_batch(0, &self.pop.genes, &mut self.pop.fit);

@@ -42,6 +42,12 @@ pub struct Bounds {
     pub hi: Genes,
     /// Decode α geometrically (uniform in log size) instead of linearly.
     pub log_alpha: bool,
+    /// How far the position genes may go beyond 0–1, as a share of their range on
+    /// either side: 0 for a search, [`TrackingSettings::reach`] for the tracker, which
+    /// follows an object it acquired beyond the space it searches.
+    ///
+    /// [`TrackingSettings::reach`]: crate::estimator::settings::TrackingSettings::reach
+    pub reach: f64,
 }
 
 impl Bounds {
@@ -69,7 +75,26 @@ impl Bounds {
             alpha[1],
             search.aspect_k[1],
         ];
-        Self { lo, hi, log_alpha }
+        Self {
+            lo,
+            hi,
+            log_alpha,
+            reach: 0.0,
+        }
+    }
+
+    /// These bounds with the position genes reaching `reach` of their range beyond each
+    /// end ([`Bounds::reach`]).
+    pub fn reaching(self, reach: f64) -> Self {
+        Self { reach, ..self }
+    }
+
+    /// Gene `i` of value `v` brought into the bounds: 0–1, or for a position gene
+    /// `[-reach, 1 + reach]`.
+    pub fn clamp(&self, i: usize, v: f64) -> f64 {
+        let r = if i < 3 { self.reach } else { 0.0 };
+        // 0.0 − r, not −r: a search's genes clamp to +0.0, as they always have.
+        v.clamp(0.0 - r, 1.0 + r)
     }
 
     /// The pose and size that genes `g` stand for.
@@ -88,9 +113,14 @@ impl Bounds {
         }
     }
 
-    /// Inverse of [`Bounds::decode`] (clamped into the search space).
+    /// Inverse of [`Bounds::decode`] (clamped into the bounds, [`Bounds::clamp`]).
     pub fn encode(&self, p: &PoseSize) -> Genes {
-        self.unclamped(p).map(|g| g.clamp(0.0, 1.0))
+        self.clamped(&self.unclamped(p))
+    }
+
+    /// Genes `g` brought into the bounds ([`Bounds::clamp`]).
+    pub fn clamped(&self, g: &Genes) -> Genes {
+        std::array::from_fn(|i| self.clamp(i, g[i]))
     }
 
     /// Whether `p` lies in the search space (its genes in 0–1).

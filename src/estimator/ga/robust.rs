@@ -31,12 +31,12 @@ pub(super) fn normal(rng: &mut impl Rng) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
-/// Gaussian mutation of about two genes (at least one), clamped to `[0, 1]`.
-pub(super) fn mutate(g: &mut Genes, sigma: f64, rng: &mut impl Rng) {
+/// Gaussian mutation of about two genes (at least one), clamped into `bounds`.
+pub(super) fn mutate(g: &mut Genes, bounds: &Bounds, sigma: f64, rng: &mut impl Rng) {
     let forced = rng.random_range(0..GENES);
     for (i, v) in g.iter_mut().enumerate() {
         if i == forced || rng.random::<f64>() < 2.0 / GENES as f64 {
-            *v = (*v + sigma * normal(rng)).clamp(0.0, 1.0);
+            *v = bounds.clamp(i, *v + sigma * normal(rng));
         }
     }
 }
@@ -56,11 +56,12 @@ pub(super) fn mutate_from_edge(g: &mut Genes, bounds: &Bounds, box_px: [f64; 2],
     *g = bounds.encode(&p);
 }
 
-/// Blend crossover (BLX-0.25): each gene drawn between and slightly beyond the parents'.
-fn blend(a: &Genes, b: &Genes, rng: &mut impl Rng) -> Genes {
+/// Blend crossover (BLX-0.25): each gene drawn between and slightly beyond the parents'
+/// (clamped into `bounds`).
+fn blend(a: &Genes, b: &Genes, bounds: &Bounds, rng: &mut impl Rng) -> Genes {
     std::array::from_fn(|i| {
         let u = rng.random_range(-0.25..1.25);
-        (a[i] + u * (b[i] - a[i])).clamp(0.0, 1.0)
+        bounds.clamp(i, a[i] + u * (b[i] - a[i]))
     })
 }
 
@@ -148,11 +149,11 @@ impl Population {
             } else {
                 let a = self.genes[rng.random_range(0..keep)];
                 let mut child = if rng.random::<f64>() < ga.crossover_rate {
-                    blend(&a, &self.genes[rng.random_range(0..keep)], rng)
+                    blend(&a, &self.genes[rng.random_range(0..keep)], &problem.bounds, rng)
                 } else {
                     a
                 };
-                mutate(&mut child, sigma, rng);
+                mutate(&mut child, &problem.bounds, sigma, rng);
                 child
             };
         }
@@ -426,28 +427,51 @@ mod tests {
         assert_eq!(schedule(10, &[1.0]), vec![10]);
     }
 
+    /// The search bounds of the tests, reaching `reach` beyond them.
+    fn test_bounds(reach: f64) -> Bounds {
+        Bounds {
+            lo: [-300.0, -300.0, 300.0, -1.0, -1.0, -1.0, 0.5, 0.5],
+            hi: [300.0, 300.0, 1200.0, 1.0, 1.0, 1.0, 10.0, 2.0],
+            log_alpha: true,
+            reach,
+        }
+    }
+
     #[test]
-    fn operators_stay_in_the_unit_cube() {
+    fn operators_stay_in_the_bounds_and_only_positions_reach_beyond_them() {
         let mut rng = StdRng::seed_from_u64(9);
-        for _ in 0..1000 {
-            let a: Genes = std::array::from_fn(|_| rng.random());
-            let b: Genes = std::array::from_fn(|_| rng.random());
-            let mut c = blend(&a, &b, &mut rng);
-            mutate(&mut c, 0.5, &mut rng);
-            assert!(c.iter().all(|v| (0.0..=1.0).contains(v)));
+        for reach in [0.0, 0.5] {
+            let bounds = test_bounds(reach);
+            let (mut beyond, mut last) = (0, [0.0; GENES]);
+            for _ in 0..1000 {
+                let a: Genes = std::array::from_fn(|_| rng.random());
+                let b: Genes = std::array::from_fn(|_| rng.random());
+                let mut c = blend(&a, &b, &bounds, &mut rng);
+                mutate(&mut c, &bounds, 0.5, &mut rng);
+                let (position, rest) = c.split_at(3);
+                assert!(position.iter().all(|v| (-reach..=1.0 + reach).contains(v)));
+                assert!(rest.iter().all(|v| (0.0..=1.0).contains(v)));
+                beyond += position.iter().filter(|v| !(0.0..=1.0).contains(*v)).count();
+                last = c;
+            }
+            assert_eq!(
+                beyond > 0,
+                reach > 0.0,
+                "reach {reach}: {beyond} position genes beyond 0-1"
+            );
+            assert_eq!(
+                bounds.encode(&bounds.decode(&last)).map(|g| (g * 1e9).round()),
+                last.map(|g| (g * 1e9).round())
+            );
         }
         let mut same = [0.5; GENES];
-        mutate(&mut same, 0.01, &mut rng);
+        mutate(&mut same, &test_bounds(0.0), 0.01, &mut rng);
         assert!(same.iter().any(|&v| v != 0.5), "at least one gene mutates");
     }
 
     #[test]
     fn an_edge_rescale_keeps_one_edge_and_the_other_axis() {
-        let bounds = Bounds {
-            lo: [-300.0, -300.0, 300.0, -1.0, -1.0, -1.0, 0.5, 0.5],
-            hi: [300.0, 300.0, 1200.0, 1.0, 1.0, 1.0, 10.0, 2.0],
-            log_alpha: true,
-        };
+        let bounds = test_bounds(0.0);
         let box_px = [200.0, 150.0];
         let start = PoseSize::from_pose(
             &Isometry3::from_parts(

@@ -79,7 +79,7 @@ const TURNS: usize = 4;
 /// resolution: the orientation and size that changed during the acquisition settle.
 pub const RELOCATE_GENERATIONS: usize = 12;
 
-/// Share of the acquisition's `F` a frame needs to be `tracking` after a relocation the
+/// Share of the acquisition's `F_L + F_R` a frame needs to be `tracking` after a relocation the
 /// verdict did not call found. A model nearer and smaller than the object (or farther
 /// and larger) matches the left image as well; only the stereo term tells them apart,
 /// and 30 mm off in depth it still scores 0.88 of the truth.
@@ -115,7 +115,7 @@ pub struct Tracker {
     /// Frames in a row not tracked (below `min_fitness`, or below `min_fitness_share` of
     /// `best_f`).
     searching: usize,
-    /// The best `F` since the last acquisition.
+    /// The best `F_L + F_R` since the last acquisition.
     best_f: f64,
     /// Best genes of the last frame and their change per frame (constant velocity).
     last_best: Option<Genes>,
@@ -124,7 +124,7 @@ pub struct Tracker {
     /// The population was acquired on an older frame: relocate it on the next one.
     relocating: bool,
     /// The last relocation was not judged found: tracking needs [`DOUBT_SHARE`] of the
-    /// acquisition's `F` until a frame is tracked.
+    /// acquisition's `F_L + F_R` until a frame is tracked.
     doubted: bool,
     /// The best genes of the last `tracking` frame.
     anchor: Option<Genes>,
@@ -220,14 +220,14 @@ impl Tracker {
         self.plan() == Plan::Acquire
     }
 
-    /// The genes expected on the next frame (last best moved by the estimated velocity);
-    /// `None` while the whole frame is to be searched (see [`Tracker::plan`]).
+    /// The genes expected on the next frame (last best moved by the estimated velocity,
+    /// not clamped into the bounds); `None` while the whole frame is to be searched (see
+    /// [`Tracker::plan`]).
     pub fn prediction(&self) -> Option<Genes> {
         if self.plan() != Plan::Track {
             return None;
         }
-        self.last_best
-            .map(|b| std::array::from_fn(|i| (b[i] + self.velocity[i]).clamp(0.0, 1.0)))
+        self.last_best.map(|b| std::array::from_fn(|i| b[i] + self.velocity[i]))
     }
 
     /// Processes one frame.
@@ -236,9 +236,9 @@ impl Tracker {
     }
 
     /// [`Tracker::step`] on a whole frame, whose status is judged on `tracking_f` of the
-    /// best genes: the `F` tracking frames would give it (they read fewer points, which
-    /// for a finely textured photo scores lower than the whole model). The tracking
-    /// frames that follow compare their `F` with it.
+    /// best genes: the `F_L + F_R` tracking frames would give it (they read fewer points,
+    /// which for a finely textured photo scores lower than the whole model). The
+    /// tracking frames that follow compare theirs with it.
     pub fn step_whole(&mut self, problem: &Problem, tracking_f: &dyn Fn(&Genes) -> f64) -> Estimate {
         self.step_judged(problem, Some(tracking_f))
     }
@@ -291,7 +291,7 @@ impl Tracker {
         // confirmed: the same object, as well matched.
         let texture = problem.texture_judged(&problem.bounds.decode(&best));
         let state = self.judge(
-            tracking_f.map_or(fitness.f, |f| f(&best)),
+            tracking_f.map_or(fitness.sum(), |f| f(&best)),
             plan == Plan::Acquire,
             &texture,
         );
@@ -306,14 +306,17 @@ impl Tracker {
         }
     }
 
-    /// The status of a frame whose best individual scored `f` (`acquired`: by a fresh
-    /// acquisition) and whose texture terms are `texture` ([`Problem::texture_judged`]),
-    /// counting the frames in a row that were not tracked. A pose is tracked
+    /// The status of a frame whose best individual scored `f` (`F_L + F_R`,
+    /// [`Fitness::sum`], which an occluder or the wall behind the card seen differently
+    /// by each eye does not lower as it lowers `F`; `acquired`: by a fresh acquisition)
+    /// and whose texture terms are
+    /// `texture` ([`Problem::texture_judged`]), counting the frames in a row that were
+    /// not tracked. A pose is tracked
     /// - where its texture vouches for it ([`verify::texture_vouches`]): a card whose
-    ///   colours the light changed, whose `F` may be low; or
-    /// - where `F` is at least `[tracking] min_fitness` and either its share of the best
-    ///   `F` since the acquisition or (not in doubt) the stereo term holds
-    ///   ([`verify::stereo_holds`]): blur lowers the `F` of the right pose, not the two
+    ///   colours the light changed, whose `f` may be low; or
+    /// - where `f` is at least `[tracking] min_fitness` and either its share of the best
+    ///   `f` since the acquisition or (not in doubt) the stereo term holds
+    ///   ([`verify::stereo_holds`]): blur lowers the `f` of the right pose, not the two
     ///   eyes' agreement on it.
     ///
     /// Never below `lost_fitness`.
@@ -425,7 +428,7 @@ impl Tracker {
 mod tests {
     use super::*;
 
-    /// The statuses `judge` gives a sequence of `(F, acquired)` with the default settings.
+    /// The statuses `judge` gives a sequence of `(F_L + F_R, acquired)` with the default settings.
     fn statuses(frames: &[(f64, bool)]) -> Vec<TrackState> {
         let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
         frames
