@@ -351,14 +351,19 @@ impl Scorer {
     /// [`Scorer::inner_similarity`], of the two eyes' scores on the inner points alone,
     /// with its width.
     fn similarity(&self, points: &PointSet, counts: &kernel::Counts, [fl, fr]: [f64; 2]) -> f64 {
-        let ([a, b], sigma) = match self.inner_similarity {
-            Some(sigma) => ([0, 1].map(|eye| self.inner_score(points, counts, eye)), sigma),
-            None => ([fl, fr], self.params.sigma),
-        };
-        let unseen = fl == 0.0 || fr == 0.0;
-        if unseen || (self.inner_similarity.is_some() && (a <= 0.0 || b <= 0.0)) {
+        if fl == 0.0 || fr == 0.0 {
             return 0.0;
         }
+        let ([a, b], sigma) = match self.inner_similarity {
+            None => ([fl, fr], self.params.sigma),
+            Some(sigma) => {
+                let inner = [0, 1].map(|eye| self.inner_score(points, counts, eye));
+                if inner.iter().any(|&s| s <= 0.0) {
+                    return 0.0;
+                }
+                (inner, sigma)
+            }
+        };
         let d = a / b - self.params.mu;
         (-(d * d) / (2.0 * sigma * sigma)).exp()
     }

@@ -238,7 +238,7 @@ impl<'a> Problem<'a> {
         let Some(t) = &self.texture else {
             return Texture::default();
         };
-        self.terms_on(t, l, points, c, false)
+        self.terms_on(t, l, points, c, false, t.brightness_where_flat)
     }
 
     /// The texture terms at candidate `c` on full resolution, denoised, on the detail
@@ -251,15 +251,20 @@ impl<'a> Problem<'a> {
         let Some(t) = &self.texture else {
             return Texture::default();
         };
-        let detail_only = TextureTerm {
-            brightness_where_flat: false,
-            ..*t
-        };
-        self.terms_on(&detail_only, 0, &t.points[0], c, true)
+        self.terms_on(t, 0, &t.points[0], c, true, false)
     }
 
-    /// [`texture::score`] of `c` on level `l` with `points`.
-    fn terms_on(&self, t: &TextureTerm, l: usize, points: &PointSet, c: &PoseSize, denoised: bool) -> Texture {
+    /// [`texture::score`] of `c` on level `l` with `points`, read `denoised` and, with
+    /// `brightness_where_flat`, on the brightness where the detail is flat.
+    fn terms_on(
+        &self,
+        t: &TextureTerm,
+        l: usize,
+        points: &PointSet,
+        c: &PoseSize,
+        denoised: bool,
+        brightness_where_flat: bool,
+    ) -> Texture {
         let l = l.min(self.levels.len() - 1);
         texture::score(
             points,
@@ -270,7 +275,7 @@ impl<'a> Problem<'a> {
             texture::Reading {
                 denoised,
                 partial_view: self.scorer.partial_view,
-                brightness_where_flat: t.brightness_where_flat,
+                brightness_where_flat,
             },
         )
     }

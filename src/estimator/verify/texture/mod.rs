@@ -309,8 +309,7 @@ impl Ncc {
     /// Whether either signal is flat (of at least 8 samples): what is left of the
     /// detail of a card that motion blur or defocus smoothed.
     fn flat(&self, denoised: bool) -> bool {
-        let (va, vb) = self.variances(denoised);
-        self.n >= 8.0 && (va < FLAT_STD * FLAT_STD || vb < FLAT_STD * FLAT_STD)
+        self.n >= 8.0 && either_flat(self.variances(denoised))
     }
 
     /// The correlation; `denoised`: of the signals without their noise (the classic
@@ -318,12 +317,20 @@ impl Ncc {
     /// a noisy image of the right pose still correlates near 1. Zero for fewer than 8
     /// samples or a flat signal.
     fn corrected(&self, denoised: bool) -> f64 {
-        if self.n < 8.0 || self.flat(denoised) {
+        if self.n < 8.0 {
             return 0.0;
         }
         let (va, vb) = self.variances(denoised);
+        if either_flat((va, vb)) {
+            return 0.0;
+        }
         ((self.sab / self.n - self.sa * self.sb / (self.n * self.n)) / (va * vb).sqrt()).clamp(-1.0, 1.0)
     }
+}
+
+/// Whether either of two variances is below [`FLAT_STD`]².
+fn either_flat((va, vb): (f64, f64)) -> bool {
+    va < FLAT_STD * FLAT_STD || vb < FLAT_STD * FLAT_STD
 }
 
 /// How [`score`] reads the texture terms.
