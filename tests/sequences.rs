@@ -27,17 +27,19 @@ use photopose::estimator::tracking::{StreamTracker, TrackState};
 use play::play;
 
 /// Regression floors of each take's median success share over the timings: the
-/// figures of 2026-12-05 (sweep 82 %, sweep-60fps 49 %, yuyv 82 %, light 87 %), and of
+/// figures of 2026-12-05 (sweep 82 %, sweep-60fps 49 %, yuyv 82 %, light 87 %), of
 /// the evening, with the card followed beyond the search space and tracking frames
-/// reading the eyes' similarity on the card alone (occlude 63 %, leave 60 %, approach
-/// 75 %), less a margin. They catch a change that makes tracking worse; the issue's
-/// target (95 % at every timing) is reported, reached or not, and not asserted.
+/// reading the eyes' similarity on the card alone (leave 60 %, approach 75 %), and of
+/// that night, with the size held and the eyes' agreement read beside an occluder (occlude
+/// 80 %; 64–81 % over the tracker's seeds 1–7), less a margin. They catch a change
+/// that makes tracking worse; the target (95 % at every timing) is reported,
+/// reached or not, and not asserted.
 const FLOORS: [(&str, f64); 7] = [
     ("sweep", 0.70),
     ("sweep-60fps", 0.35),
     ("yuyv", 0.70),
     ("light", 0.74),
-    ("occlude", 0.50),
+    ("occlude", 0.65),
     ("leave", 0.50),
     ("approach", 0.60),
 ];
@@ -217,4 +219,40 @@ fn an_approach_is_followed_nearer_the_hand_than_the_search_space_reaches() {
         );
     }
     assert!(beyond >= 40, "only {beyond} frames beyond the search space");
+}
+
+/// A grey board slides over the card from one side (`occlude`, 3–5 s, up to about 55 %
+/// covered). The card is acquired at 2.6 s and followed: while at least 60 % of it is
+/// visible, every frame is `tracking` within 10 mm, 10 % and 10°. Held at its size
+/// (`[tracking] size_hold`), the model cannot shrink onto the visible part, and the
+/// two eyes' agreement is read without the board's edge, which each eye sees at
+/// another place (`stereo_trimmed`). Before, the model shrank 11–26 % and the frames
+/// from 65 % visible on were `searching`.
+#[test]
+fn a_card_partly_under_a_board_is_tracked_at_its_size() {
+    let (mut occlude, mut tracker) = Take::new("occlude");
+    let (acquired, state) = occlude.step(&mut tracker, 78);
+    assert_eq!(state, TrackState::Tracking, "acquisition {acquired:?}");
+    tracker.follow_on();
+    let mut covered = 0;
+    for i in 79..occlude.take.frames() {
+        let ([mm, size, deg], state) = occlude.step(&mut tracker, i);
+        let visible = occlude.film.visible(i);
+        if visible < 0.6 {
+            continue;
+        }
+        covered += (visible < 0.9) as usize;
+        println!(
+            "frame {i}: {:.0} % visible, {mm:.1} mm, {:.1} %, {deg:.1}° off, {state:?}",
+            visible * 100.0,
+            size * 100.0
+        );
+        assert!(
+            state == TrackState::Tracking && mm <= 10.0 && size <= 0.1 && deg <= 10.0,
+            "frame {i}, {:.0} % visible: {state:?}, {mm:.1} mm, {:.1} %, {deg:.1}° off",
+            visible * 100.0,
+            size * 100.0
+        );
+    }
+    assert!(covered >= 20, "only {covered} frames partly covered");
 }

@@ -307,6 +307,10 @@ pub struct TrackingSettings {
     /// The search space is where an object is looked for; a tracked one may come nearer
     /// the hand than it (an approach to grasp) or leave it sideways.
     pub reach: f64,
+    /// Tracking frames keep the object's size within this share of the size held since
+    /// it was found (0: free): a rigid object does not change size, and a model free to
+    /// shrink slid onto the part an occluder left visible and followed the occluder.
+    pub size_hold: f64,
 }
 
 impl TrackingSettings {
@@ -358,6 +362,9 @@ impl TrackingSettings {
         if !(0.0..=MAX_REACH).contains(&self.reach) {
             return Err(invalid("reach", format!("{} must lie in [0, {MAX_REACH}]", self.reach)));
         }
+        if !(0.0..=1.0).contains(&self.size_hold) {
+            return Err(invalid("size_hold", format!("{} must lie in [0, 1]", self.size_hold)));
+        }
         Ok(self)
     }
 }
@@ -378,6 +385,7 @@ impl Default for TrackingSettings {
             lost_after_frames: 30,
             acquire_generations: 300,
             reach: 1.0,
+            size_hold: 0.05,
         }
     }
 }
@@ -552,6 +560,14 @@ mod tests {
         assert_eq!(
             tracking.validate().unwrap_err().to_string(),
             "[tracking] reach: 2.5 must lie in [0, 2]"
+        );
+        let tracking = TrackingSettings {
+            size_hold: 1.5,
+            ..TrackingSettings::default()
+        };
+        assert_eq!(
+            tracking.validate().unwrap_err().to_string(),
+            "[tracking] size_hold: 1.5 must lie in [0, 1]"
         );
         let ga = GaSettings {
             survivors: 1.0,

@@ -48,6 +48,9 @@ pub struct Bounds {
     ///
     /// [`TrackingSettings::reach`]: crate::estimator::settings::TrackingSettings::reach
     pub reach: f64,
+    /// The ranges (low, high) of the genes of α and k instead of 0–1, where a tracked
+    /// object's size is held ([`Bounds::holding_size`]).
+    pub held_size: Option<[[f64; 2]; 2]>,
 }
 
 impl Bounds {
@@ -80,6 +83,7 @@ impl Bounds {
             hi,
             log_alpha,
             reach: 0.0,
+            held_size: None,
         }
     }
 
@@ -89,9 +93,31 @@ impl Bounds {
         Self { reach, ..self }
     }
 
-    /// Gene `i` of value `v` brought into the bounds: 0–1, or for a position gene
-    /// `[-reach, 1 + reach]`.
+    /// These bounds with α and k held within `share` of those of `g` on either side
+    /// ([`Bounds::held_size`]).
+    pub fn holding_size(self, g: &Genes, share: f64) -> Self {
+        let p = self.decode(g);
+        let genes = |f: f64| {
+            self.unclamped(&PoseSize {
+                alpha: p.alpha * f,
+                k: p.k * f,
+                ..p
+            })
+        };
+        let (lo, hi) = (genes(1.0 / (1.0 + share)), genes(1.0 + share));
+        Self {
+            held_size: Some([[lo[6], hi[6]], [lo[7], hi[7]]]),
+            ..self
+        }
+    }
+
+    /// Gene `i` of value `v` brought into the bounds: 0–1, for a position gene
+    /// `[-reach, 1 + reach]`, for a held size gene its range within 0–1.
     pub fn clamp(&self, i: usize, v: f64) -> f64 {
+        if let Some(held) = self.held_size.filter(|_| i >= 6) {
+            let [lo, hi] = held[i - 6];
+            return v.clamp(lo.max(0.0), hi.min(1.0));
+        }
         let r = if i < 3 { self.reach } else { 0.0 };
         // 0.0 − r, not −r: a search's genes clamp to +0.0, as they always have.
         v.clamp(0.0 - r, 1.0 + r)
@@ -252,6 +278,17 @@ impl<'a> Problem<'a> {
             return Texture::default();
         };
         self.terms_on(t, 0, &t.points[0], c, true, false)
+    }
+
+    /// The stereo term at candidate `c` on full resolution without the points where the
+    /// eyes disagree far more than at most ([`texture::stereo_trimmed`]); zero without
+    /// a texture term.
+    pub fn stereo_trimmed_judged(&self, c: &PoseSize) -> f64 {
+        let Some(t) = &self.texture else {
+            return 0.0;
+        };
+        let eyes = t.pyramid.eyes(0);
+        texture::stereo_trimmed(&t.points[0], &self.levels[0].rig, eyes, &self.scorer.left_from_hand, c)
     }
 
     /// [`texture::score`] of `c` on level `l` with `points`, read `denoised` and, with

@@ -434,6 +434,7 @@ mod tests {
             hi: [300.0, 300.0, 1200.0, 1.0, 1.0, 1.0, 10.0, 2.0],
             log_alpha: true,
             reach,
+            held_size: None,
         }
     }
 
@@ -467,6 +468,29 @@ mod tests {
         let mut same = [0.5; GENES];
         mutate(&mut same, &test_bounds(0.0), 0.01, &mut rng);
         assert!(same.iter().any(|&v| v != 0.5), "at least one gene mutates");
+    }
+
+    /// A tracked object's held size: mutation and crossover keep α and k within the
+    /// share of the held ones, the pose genes free.
+    #[test]
+    fn a_held_size_stays_within_its_share() {
+        let mut rng = StdRng::seed_from_u64(3);
+        let held = [0.5, 0.4, 0.6, 0.5, 0.5, 0.5, 0.3, 0.7];
+        let bounds = test_bounds(0.0).holding_size(&held, 0.05);
+        let p = bounds.decode(&held);
+        let mut x = [f64::INFINITY, f64::NEG_INFINITY];
+        for _ in 0..1000 {
+            let a: Genes = std::array::from_fn(|_| rng.random());
+            let b: Genes = std::array::from_fn(|_| rng.random());
+            let mut c = blend(&a, &b, &bounds, &mut rng);
+            mutate(&mut c, &bounds, 0.5, &mut rng);
+            let q = bounds.decode(&c);
+            for r in [q.alpha / p.alpha, q.k / p.k] {
+                assert!((1.0 / 1.05 - 1e-9..=1.05 + 1e-9).contains(&r), "{r}");
+            }
+            x = [x[0].min(c[0]), x[1].max(c[0])];
+        }
+        assert!(x[0] < 0.1 && x[1] > 0.9, "x ranged over {x:?}");
     }
 
     #[test]

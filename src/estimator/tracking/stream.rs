@@ -273,7 +273,8 @@ impl StreamTracker {
             Ready::Regions => {
                 let regions = std::slice::from_ref(self.regions.as_ref()?);
                 let threads = self.config.tracking.threads;
-                let problem = Problem::new(&self.scorer, regions, &self.points, self.bounds, threads);
+                let bounds = self.tracker.holding(self.bounds);
+                let problem = Problem::new(&self.scorer, regions, &self.points, bounds, threads);
                 // The eyes were read in `prepare` where this holds.
                 let in_doubt = self.tracker.doubted();
                 let problem = if self.reads_eyes() {

@@ -101,7 +101,7 @@ impl TwoEyes<'_> {
 const OUTLIER: f32 = 3.0;
 
 /// The correlation of the pairs whose standardised values are not far apart ([`OUTLIER`]).
-fn trimmed_ncc(pairs: &[(f32, f32)]) -> f64 {
+pub(super) fn trimmed_ncc(pairs: &[(f32, f32)]) -> f64 {
     if pairs.is_empty() {
         return 0.0;
     }
