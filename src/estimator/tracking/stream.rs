@@ -138,11 +138,14 @@ pub struct StreamTracker {
     ready: Option<Ready>,
 }
 
-/// How the tracker scores. Its whole-frame searches (acquisitions, relocations,
-/// recoveries) rank by `F` itself, with eq. 17's similarity factor
-/// ([`Scorer::rank_by_sum`] off). Ranked by the sum as the one-shot estimate is, the
-/// tracking sequences got worse: after whole-frame searches on motion-blurred frames of
-/// a red card on a red wall, a pose 200–590 mm off was called tracking.
+/// How the tracker scores. Its acquisitions and relocations rank by `F` itself, with
+/// eq. 17's similarity factor ([`Scorer::rank_by_sum`] off). Ranked by the sum as the
+/// one-shot estimate is, the tracking sequences got worse: after whole-frame searches on
+/// motion-blurred frames of a red card on a red wall, a pose 200–590 mm off was called
+/// tracking. Its recoveries rank by the sum: just after an occluder has passed, its
+/// edge still hides part of the card from one eye only, and the factor cut the card's
+/// `F` to 0.72 (the sum 1.37) while a region of the wall whose eyes scored alike won,
+/// 700 mm off (the `occlude` take, tracker seed 7).
 ///
 /// Its `tracking_frames` read the similarity factor on the card's inner points alone,
 /// [`INNER_SIMILARITY_SIGMA`] wide ([`Scorer::inner_similarity`]): near the cameras the
@@ -260,6 +263,7 @@ impl StreamTracker {
                 images.apply_gains(self.exposure.gains());
                 let mut prepared = Prepared::new(&self.model, &images, &self.config)?;
                 as_tracker_scores(&mut prepared.scorer, false);
+                prepared.scorer.rank_by_sum = self.tracker.plan() == Plan::Recover;
                 Ready::Whole(Box::new(prepared), images.left)
             }
         };
