@@ -22,6 +22,7 @@ use crate::estimator::fitness::{Fitness, PointSet, Scorer};
 use crate::estimator::model::PhotoModel;
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::SearchSpace;
+use crate::estimator::verify::plane::TwoEyes;
 use crate::estimator::verify::texture::{self, Texture};
 use crate::estimator::verify::{TextureTerm, Verdict};
 use crate::estimator::workers::Workers;
@@ -93,10 +94,12 @@ impl Bounds {
         Self { reach, ..self }
     }
 
-    /// These bounds with α and k held within `share` of those of `g` on either side
-    /// ([`Bounds::held_size`]).
-    pub fn holding_size(self, g: &Genes, share: f64) -> Self {
-        let p = self.decode(g);
+    /// These bounds with α and k held within `share` on either side of those whose genes
+    /// are `size` ([`Bounds::held_size`]).
+    pub fn holding_size(self, size: [f64; 2], share: f64) -> Self {
+        let mut g = [0.5; GENES];
+        (g[6], g[7]) = (size[0], size[1]);
+        let p = self.decode(&g);
         let genes = |f: f64| {
             self.unclamped(&PoseSize {
                 alpha: p.alpha * f,
@@ -281,14 +284,19 @@ impl<'a> Problem<'a> {
     }
 
     /// The stereo term at candidate `c` on full resolution without the points where the
-    /// eyes disagree far more than at most ([`texture::stereo_trimmed`]); zero without
-    /// a texture term.
+    /// eyes disagree far more than at most ([`TwoEyes::trimmed_detail_agreement`]); zero
+    /// without a texture term.
     pub fn stereo_trimmed_judged(&self, c: &PoseSize) -> f64 {
         let Some(t) = &self.texture else {
             return 0.0;
         };
-        let eyes = t.pyramid.eyes(0);
-        texture::stereo_trimmed(&t.points[0], &self.levels[0].rig, eyes, &self.scorer.left_from_hand, c)
+        let two = TwoEyes {
+            points: &t.points[0],
+            rig: &self.levels[0].rig,
+            eyes: t.pyramid.eyes(0),
+            left_from_hand: &self.scorer.left_from_hand,
+        };
+        two.trimmed_detail_agreement(c)
     }
 
     /// [`texture::score`] of `c` on level `l` with `points`, read `denoised` and, with

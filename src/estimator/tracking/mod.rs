@@ -389,11 +389,7 @@ impl Tracker {
     /// size_hold` of the held size ([`Bounds::holding_size`]), once one is held.
     pub fn holding(&self, bounds: Bounds) -> Bounds {
         match self.held_size {
-            Some([alpha, k]) if self.settings.size_hold > 0.0 => {
-                let mut g = [0.5; GENES];
-                (g[6], g[7]) = (alpha, k);
-                bounds.holding_size(&g, self.settings.size_hold)
-            }
+            Some(size) if self.settings.size_hold > 0.0 => bounds.holding_size(size, self.settings.size_hold),
             _ => bounds,
         }
     }

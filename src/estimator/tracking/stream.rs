@@ -256,14 +256,15 @@ impl StreamTracker {
             None => {
                 // A fresh acquisition sees the frame as it is; a relocation or recovery
                 // in the light of the tracking frames.
-                if self.tracker.plan() == Plan::Acquire {
+                let plan = self.tracker.plan();
+                if plan == Plan::Acquire {
                     self.exposure.reset();
                 }
                 let mut images = frame.to_images().ok_or_else(|| FrameError::incomplete(frame))?;
                 images.apply_gains(self.exposure.gains());
                 let mut prepared = Prepared::new(&self.model, &images, &self.config)?;
                 as_tracker_scores(&mut prepared.scorer, false);
-                prepared.scorer.rank_by_sum = self.tracker.plan() == Plan::Recover;
+                prepared.scorer.rank_by_sum = plan == Plan::Recover;
                 Ready::Whole(Box::new(prepared), images.left)
             }
         };

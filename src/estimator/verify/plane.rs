@@ -8,7 +8,7 @@
 
 use nalgebra::{Isometry3, Rotation3, UnitQuaternion, Vector3};
 
-use super::texture::{both_eyes, Brightness, Ncc};
+use super::texture::{both_eyes, Brightness, Ncc, Sample};
 use crate::camera::StereoRig;
 use crate::estimator::fitness::PointSet;
 use crate::estimator::pose::PoseSize;
@@ -65,7 +65,7 @@ impl TwoEyes<'_> {
     /// texture terms' margin inside its edge) for candidate `c`: a normalised correlation.
     pub fn agreement(&self, c: &PoseSize) -> f64 {
         let mut ncc = Ncc::default();
-        self.brightness_inside(c, |a, b| ncc.add(a, b));
+        self.inside(c, BRIGHTNESS, |a, b| ncc.add(a, b));
         ncc.value()
     }
 
@@ -74,14 +74,26 @@ impl TwoEyes<'_> {
     /// brightness): where a bar in front of the card shows each eye a different surface.
     /// Those disagree at any plane, and would draw the sweep towards the bar's depth.
     pub fn trimmed_agreement(&self, c: &PoseSize) -> f64 {
+        self.trimmed(c, BRIGHTNESS)
+    }
+
+    /// [`Self::trimmed_agreement`] on the detail (the stereo term's reading, without its
+    /// noise correction) instead of the brightness: where something in front of the card
+    /// shows each eye another surface, or its edge at another place.
+    pub fn trimmed_detail_agreement(&self, c: &PoseSize) -> f64 {
+        self.trimmed(c, DETAIL)
+    }
+
+    /// The correlation of the two eyes' `pick` of their samples ([`trimmed_ncc`]).
+    fn trimmed(&self, c: &PoseSize, pick: fn(Sample) -> f32) -> f64 {
         let mut pairs = Vec::with_capacity(self.points.inner_x.len());
-        self.brightness_inside(c, |a, b| pairs.push((a, b)));
+        self.inside(c, pick, |a, b| pairs.push((a, b)));
         trimmed_ncc(&pairs)
     }
 
-    /// The two eyes' brightness at the model's inner points at least the texture terms'
-    /// margin inside its edge, for candidate `c`: `visit(left, right)`.
-    fn brightness_inside(&self, c: &PoseSize, mut visit: impl FnMut(f32, f32)) {
+    /// The two eyes' `pick` of their samples at the model's inner points at least the
+    /// texture terms' margin inside its edge, for candidate `c`: `visit(left, right)`.
+    fn inside(&self, c: &PoseSize, pick: fn(Sample) -> f32, mut visit: impl FnMut(f32, f32)) {
         both_eyes(
             self.points,
             self.rig,
@@ -90,18 +102,22 @@ impl TwoEyes<'_> {
             c,
             |inside, _, a, b| {
                 if inside {
-                    visit(a.0, b.0);
+                    visit(pick(a), pick(b));
                 }
             },
         );
     }
 }
 
+/// A sample's brightness, and its detail.
+const BRIGHTNESS: fn(Sample) -> f32 = |s| s.0;
+const DETAIL: fn(Sample) -> f32 = |s| s.1;
+
 /// How many times the median gap a point's gap may be for [`TwoEyes::trimmed_agreement`].
 const OUTLIER: f32 = 3.0;
 
 /// The correlation of the pairs whose standardised values are not far apart ([`OUTLIER`]).
-pub(super) fn trimmed_ncc(pairs: &[(f32, f32)]) -> f64 {
+fn trimmed_ncc(pairs: &[(f32, f32)]) -> f64 {
     if pairs.is_empty() {
         return 0.0;
     }

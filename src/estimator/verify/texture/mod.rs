@@ -410,33 +410,6 @@ pub fn score(
     }
 }
 
-/// The stereo term of candidate `c` (as [`score`] reads it on the detail, without the
-/// noise correction) without the points where the two eyes disagree far more than at
-/// most ([`trimmed_ncc`](super::plane)): where something in front of the card shows each
-/// eye another surface, or its edge at another place.
-pub fn stereo_trimmed(
-    points: &PointSet,
-    rig: &StereoRig,
-    eyes: [&Brightness; 2],
-    left_from_hand: &Isometry3<f64>,
-    c: &PoseSize,
-) -> f64 {
-    let mut pairs = Vec::with_capacity(points.inner_x.len());
-    both_eyes(
-        points,
-        rig,
-        eyes,
-        left_from_hand,
-        c,
-        |inside, _, (_, da, _), (_, db, _)| {
-            if inside {
-                pairs.push((da, db));
-            }
-        },
-    );
-    super::plane::trimmed_ncc(&pairs)
-}
-
 /// One eye's sample at a point: brightness, detail and the detail's noise variance.
 pub(super) type Sample = (f32, f32, f32);
 
