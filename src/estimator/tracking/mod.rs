@@ -488,9 +488,19 @@ impl Tracker {
 mod tests {
     use super::*;
 
+    /// Texture terms of `stereo` and `structure`.
+    const fn texture(stereo: f64, structure: f64) -> Texture {
+        Texture { stereo, structure }
+    }
+
+    /// A tracker with the built-in configuration, of a 100 × 80 px photo box.
+    fn tracker() -> Tracker {
+        Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0)
+    }
+
     /// The statuses `judge` gives a sequence of `(F_L + F_R, acquired)` with the default settings.
     fn statuses(frames: &[(f64, bool)]) -> Vec<TrackState> {
-        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        let mut tracker = tracker();
         frames
             .iter()
             .map(|&(f, acquired)| tracker.judge(f, acquired, &NONE, || 0.0))
@@ -500,18 +510,13 @@ mod tests {
     const T: TrackState = TrackState::Tracking;
     /// Texture terms: none (no texture read, or flat), both as a found pose has them,
     /// and only the two eyes' agreement (a blurred card).
-    const NONE: Texture = Texture {
-        stereo: 0.0,
-        structure: 0.0,
-    };
-    const VOUCHES: Texture = Texture {
-        stereo: 0.9,
-        structure: 0.92,
-    };
-    const STEREO: Texture = Texture {
-        stereo: 0.9,
-        structure: 0.6,
-    };
+    const NONE: Texture = texture(0.0, 0.0);
+    const VOUCHES: Texture = texture(0.9, 0.92);
+    const STEREO: Texture = texture(0.9, 0.6);
+    /// The eyes agree, the photo's pattern does not show: the card turned half round.
+    const TURNED: Texture = texture(1.0, 0.05);
+    /// The card's pattern shows; the eyes disagree on the points near an occluder's edge.
+    const BESIDE: Texture = texture(0.75, 0.6);
     const S: TrackState = TrackState::Searching;
     const L: TrackState = TrackState::Lost;
 
@@ -530,7 +535,7 @@ mod tests {
 
     #[test]
     fn after_a_doubtful_relocation_tracking_needs_nearly_the_acquisitions_fitness() {
-        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        let mut tracker = tracker();
         assert_eq!(tracker.judge(1.95, true, &NONE, || 0.0), T);
         // 1.75 is 0.90 of the acquisition's F: tracked unless in doubt.
         assert_eq!(tracker.judge(1.75, false, &NONE, || 0.0), T);
@@ -544,7 +549,7 @@ mod tests {
     #[test]
     fn searching_too_long_is_lost_and_acquired_afresh() {
         let settings = TrackingSettings::default();
-        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        let mut tracker = tracker();
         tracker.pop = LivePopulation::of(vec![[0.5; GENES]]);
         assert_eq!(tracker.judge(1.95, true, &NONE, || 0.0), T);
         for _ in 0..settings.lost_after_frames {
@@ -558,7 +563,7 @@ mod tests {
     #[test]
     fn a_lost_object_is_recovered_from_its_last_tracked_pose_before_it_is_acquired() {
         let settings = TrackingSettings::default();
-        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        let mut tracker = tracker();
         assert_eq!(tracker.plan(), Plan::Acquire, "nothing acquired yet");
         tracker.pop = LivePopulation::of(vec![[0.5; GENES]]);
         tracker.last_best = Some([0.5; GENES]);
@@ -586,7 +591,7 @@ mod tests {
 
     #[test]
     fn texture_that_vouches_or_eyes_that_agree_keep_a_card_tracked_but_never_below_the_floor() {
-        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        let mut tracker = tracker();
         // F 0.73 is below min_fitness (1.0): searching on colour alone, tracking where
         // both eyes see the photo's texture at the pose.
         assert_eq!(tracker.judge(0.73, true, &NONE, || 0.0), S);
@@ -611,13 +616,9 @@ mod tests {
     /// The eyes agree on a card turned half round as on the card; its pattern does not.
     #[test]
     fn eyes_that_agree_on_something_without_the_photos_pattern_do_not_keep_it_tracked() {
-        let turned = Texture {
-            stereo: 1.0,
-            structure: 0.05,
-        };
-        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        let mut tracker = tracker();
         assert_eq!(tracker.judge(1.95, true, &NONE, || 0.0), T);
-        assert_eq!(tracker.judge(1.1, false, &turned, || 1.0), S);
+        assert_eq!(tracker.judge(1.1, false, &TURNED, || 1.0), S);
         assert_eq!(tracker.judge(1.1, false, &STEREO, || 0.0), T);
     }
 
@@ -625,12 +626,7 @@ mod tests {
     /// every point is low, on all but the disagreeing ones it holds.
     #[test]
     fn eyes_that_agree_beside_an_occluder_keep_a_card_tracked_but_not_in_doubt() {
-        // The card's pattern shows; the eyes disagree on the points near the edge.
-        const BESIDE: Texture = Texture {
-            stereo: 0.75,
-            structure: 0.6,
-        };
-        let mut tracker = Tracker::new(&Config::load(None).expect("defaults"), [100.0, 80.0], 0);
+        let mut tracker = tracker();
         assert_eq!(tracker.judge(1.95, true, &NONE, || 0.0), T);
         // F 1.3 is below 0.85 × 1.95: tracked if the trimmed agreement holds (0.85).
         assert_eq!(tracker.judge(1.3, false, &BESIDE, || 0.9), T);
