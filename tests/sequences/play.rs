@@ -192,21 +192,8 @@ impl Played {
     /// For each return into view (out of view, then scored again), the seconds until the
     /// first good pose (infinite: never).
     pub fn reacquisitions(&self) -> Vec<f64> {
-        let mut out = Vec::new();
-        let mut away = false;
-        for (i, f) in self.frames.iter().enumerate() {
-            if f.judged.visible < photopose::capture::scenario::OUT_OF_VIEW {
-                away = true;
-            } else if away && f.judged.scored() {
-                away = false;
-                let back = self.frames[i..]
-                    .iter()
-                    .find(|g| g.judged.good())
-                    .map_or(f64::INFINITY, |g| g.t - f.t);
-                out.push(back);
-            }
-        }
-        out
+        let frames: Vec<(f64, Judged)> = self.frames.iter().map(|f| (f.t, f.judged)).collect();
+        photopose::capture::scenario::reacquisitions(&frames)
     }
 
     /// The time to the first good pose, s.

@@ -125,9 +125,57 @@ impl Judged {
     }
 }
 
+/// For each return into view in `frames` (each frame's time in seconds and its judged
+/// pose, in order: the card out of view, then in view enough to be scored), the seconds
+/// from that frame to the first good pose (infinite: none came).
+pub fn reacquisitions(frames: &[(f64, Judged)]) -> Vec<f64> {
+    let mut out = Vec::new();
+    let mut away = false;
+    for (i, (t, judged)) in frames.iter().enumerate() {
+        if judged.visible < OUT_OF_VIEW {
+            away = true;
+        } else if away && judged.scored() {
+            away = false;
+            let back = frames[i..]
+                .iter()
+                .find(|(_, g)| g.good())
+                .map_or(f64::INFINITY, |(good, _)| good - t);
+            out.push(back);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_return_into_view_counts_the_time_to_the_first_good_pose() {
+        let frame = |visible: f64, tracking: bool, mm: f64| Judged {
+            visible,
+            tracking,
+            errors: [mm, 0.0, 0.0],
+        };
+        let frames: Vec<(f64, Judged)> = [
+            frame(1.0, true, 1.0),
+            frame(0.0, false, 900.0),  // away
+            frame(0.4, false, 600.0),  // coming back: not scored yet
+            frame(0.8, false, 500.0),  // back: scored from here
+            frame(1.0, true, 30.0),    // tracking, but not good
+            frame(1.0, true, 2.0),     // good, 0.2 s after coming back
+            frame(0.05, false, 900.0), // away again
+            frame(1.0, false, 900.0),  // back, and never found
+        ]
+        .into_iter()
+        .enumerate()
+        .map(|(i, j)| (0.1 * i as f64, j))
+        .collect();
+        let back = reacquisitions(&frames);
+        assert_eq!(back.len(), 2);
+        assert!((back[0] - 0.2).abs() < 1e-9, "{back:?}");
+        assert!(back[1].is_infinite());
+    }
 
     #[test]
     fn an_unknown_scenario_names_the_known_ones() {

@@ -49,6 +49,11 @@ pub struct DemoArgs {
     /// the summary give the success rate against the truth.
     #[arg(long, value_name = "NAME", conflicts_with_all = ["scene", "speed", "objects"])]
     pub scenario: Option<String>,
+    /// Play the scenario once, as a recorded sequence is played (`capture --source
+    /// replay:DIR` without `--loop`), and stop when it ends (or after `--seconds`): the
+    /// success of one pass, as the held-out sequences are scored.
+    #[arg(long, requires = "scenario")]
+    pub once: bool,
     /// Where to write the trajectory plot.
     #[arg(long, value_name = "FILE.png", default_value = "demo-trajectory.png")]
     pub plot: PathBuf,
@@ -128,10 +133,12 @@ impl Stage {
             stage.visible = Some(super::render::record_scenario(&scenario, &dir, config)?);
             let fps = args.fps.unwrap_or(scenario.fps).to_string();
             let source = format!("replay:{}", dir.display());
-            stage.capture = ["--source", &source, "--loop", "--fps", &fps]
-                .map(String::from)
-                .to_vec();
-            stage.title = format!("scenario {name} ({} s, looped) at {fps} fps", scenario.seconds);
+            stage.capture = ["--source", &source, "--fps", &fps].map(String::from).to_vec();
+            if !args.once {
+                stage.capture.push("--loop".into());
+            }
+            let played = if args.once { "once" } else { "looped" };
+            stage.title = format!("scenario {name} ({} s, {played}) at {fps} fps", scenario.seconds);
             return Ok(());
         }
         for (k, scene) in args.cards().iter().enumerate() {
@@ -169,14 +176,16 @@ fn show(args: &DemoArgs, stage: &Stage) -> Result<Run> {
     let poses = ipc.pose_subscriber(POSES_SERVICE)?;
     let truths = ipc.pose_subscriber(TRUTH_SERVICE)?;
     let (mut procs, controller) = start_processes(args, stage)?;
+    let span = if args.once { "until it ends, at most" } else { "for" };
     println!(
-        "photopose demo: {} for {} s (Ctrl-C stops early)",
+        "photopose demo: {} {span} {} s (Ctrl-C stops early)",
         stage.title, args.seconds
     );
     let names: Vec<String> = stage.models.iter().map(|(n, _)| n.to_string()).collect();
     let mut run = Run::new(&names, stage.visible.clone());
     let watched = watch(
         args.seconds,
+        args.once,
         &ipc,
         [&poses, &truths],
         &mut procs,
@@ -236,9 +245,12 @@ fn start_processes(args: &DemoArgs, stage: &Stage) -> Result<(Processes, Option<
 }
 
 /// Collects truths and poses for `seconds` (or until a stop is requested), showing the
-/// status line; fails when a child process exits early.
+/// status line; fails when a child process exits early, except a capture that played a
+/// sequence `once` to its end: then the poses of its last frames are collected for
+/// [`DRAIN`] more.
 fn watch(
     seconds: f64,
+    once: bool,
     ipc: &Ipc,
     [poses, truths]: [&PoseSubscriber; 2],
     procs: &mut Processes,
@@ -249,7 +261,11 @@ fn watch(
     let bar = status_bar();
     let every = Duration::from_millis(if bar.is_hidden() { 2000 } else { 250 });
     let mut shown = Instant::now();
-    while ipc.wait(Duration::from_millis(1)) && start.elapsed().as_secs_f64() < seconds {
+    let mut ended: Option<Instant> = None;
+    while ipc.wait(Duration::from_millis(1))
+        && start.elapsed().as_secs_f64() < seconds
+        && ended.is_none_or(|t| t.elapsed() < DRAIN)
+    {
         let now = monotonic_ns();
         while let Some(set) = receive_poses(truths)? {
             run.truth(&set);
@@ -257,9 +273,15 @@ fn watch(
         while let Some(set) = receive_poses(poses)? {
             run.poses(&set, now);
         }
-        if let Some(line) = procs.exited() {
-            bar.finish_and_clear();
-            return Err(anyhow!("{line}; see its message above"));
+        match procs.exited() {
+            Some((name, status)) if once && name == "capture" && status.success() => {
+                ended.get_or_insert_with(Instant::now);
+            }
+            Some((name, status)) if ended.is_none() || name != "capture" => {
+                bar.finish_and_clear();
+                return Err(anyhow!("photopose {name} stopped ({status}); see its message above"));
+            }
+            _ => {}
         }
         if shown.elapsed() >= every {
             shown = Instant::now();
@@ -275,6 +297,10 @@ fn watch(
     bar.finish();
     Ok(())
 }
+
+/// How long poses are still collected after a sequence played `once` has ended: the
+/// estimator's last frames, and a search still running when it ended.
+const DRAIN: Duration = Duration::from_millis(1500);
 
 /// The live status on a terminal: two lines (the figures, the controller's last
 /// line) redrawn in place. Hidden when stderr is not a terminal (logs, CI, pipes),

@@ -58,10 +58,10 @@ impl Processes {
         Ok(slot)
     }
 
-    /// A line naming a child that has exited, if any.
-    pub fn exited(&mut self) -> Option<String> {
+    /// The name of a child that has exited, if any, and how it exited.
+    pub fn exited(&mut self) -> Option<(String, std::process::ExitStatus)> {
         self.children.iter_mut().find_map(|(name, c)| match c.try_wait() {
-            Ok(Some(status)) => Some(format!("photopose {name} stopped ({status})")),
+            Ok(Some(status)) => Some((name.clone(), status)),
             _ => None,
         })
     }

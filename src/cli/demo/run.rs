@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{Quaternion, UnitQuaternion};
 
-use crate::capture::scenario::{Judged, GOOD, SCORED_SHARE, WRONG};
+use crate::capture::scenario::{reacquisitions, Judged, GOOD, SCORED_SHARE, WRONG};
 use crate::cli::report::plot::{self, Panel, Series, PALETTE};
 use crate::cli::report::stats::Samples;
 use crate::transport::messages::{PoseMsg, PoseSet, Status};
@@ -35,18 +35,21 @@ impl Run {
         let record = &self.tracks[0].1;
         let poses: BTreeMap<u64, &PoseMsg> = record.poses.iter().map(|(p, _)| (p.frame_id, p)).collect();
         let last = *poses.keys().next_back()?;
-        let frames = (record.truth.range(..=last)).map(|(id, truth)| {
-            let visible = visible[(*id % visible.len() as u64) as usize];
-            match poses.get(id) {
-                Some(p) => judge(p, truth, visible),
-                None => Judged {
-                    visible,
-                    tracking: false,
-                    errors: [f64::NAN; 3],
-                },
-            }
-        });
-        Some(Judgement::of(frames))
+        let frames: Vec<(f64, Judged)> = (record.truth.range(..=last))
+            .map(|(id, truth)| {
+                let visible = visible[(*id % visible.len() as u64) as usize];
+                let judged = match poses.get(id) {
+                    Some(p) => judge(p, truth, visible),
+                    None => Judged {
+                        visible,
+                        tracking: false,
+                        errors: [f64::NAN; 3],
+                    },
+                };
+                (truth.capture_time_ns as f64 * 1e-9, judged)
+            })
+            .collect();
+        Some(Judgement::of(&frames))
     }
 
     /// Files each object's truth by name (a lone truth goes to a lone object).
@@ -161,17 +164,21 @@ struct Judgement {
     /// `tracking` poses too far off, and while the card was out of view.
     wrong: usize,
     out_of_view: usize,
+    /// For each return of the card into view, the seconds to the first good pose.
+    back: Vec<f64>,
 }
 
 impl Judgement {
-    fn of(frames: impl Iterator<Item = Judged>) -> Self {
+    /// The judgement of `frames`: each frame's capture time, seconds, and its judged pose.
+    fn of(frames: &[(f64, Judged)]) -> Self {
         let mut j = Judgement {
             scored: 0,
             good: 0,
             wrong: 0,
             out_of_view: 0,
+            back: reacquisitions(frames),
         };
-        for f in frames {
+        for (_, f) in frames {
             j.scored += f.scored() as usize;
             j.good += (f.scored() && f.good()) as usize;
             j.wrong += f.wrong() as usize;
@@ -188,9 +195,24 @@ impl Judgement {
     fn summary(&self) -> String {
         let [mm, size, deg] = GOOD;
         let [wrong_mm, wrong_deg] = WRONG;
+        let back: Vec<String> = self
+            .back
+            .iter()
+            .map(|s| {
+                if s.is_finite() {
+                    format!("{s:.2} s")
+                } else {
+                    "never".into()
+                }
+            })
+            .collect();
+        let back = match back.is_empty() {
+            true => String::new(),
+            false => format!("\nback in view → good tracking pose after: {}", back.join(", ")),
+        };
         format!(
             "success: {:.1} % ({} of {} frames with ≥ {:.0} % of the card in view got a tracking pose within {mm} mm, {deg}° and {:.0} %)\n\
-             tracking poses more than {wrong_mm} mm or {wrong_deg}° off: {};  tracking while the card was out of view: {}",
+             tracking poses more than {wrong_mm} mm or {wrong_deg}° off: {};  tracking while the card was out of view: {}{back}",
             self.success(),
             self.good,
             self.scored,
@@ -395,9 +417,16 @@ mod tests {
         let j = run.judged().unwrap();
         // Frames 0, 1 and 4 are scored (frame 5 has no pose yet); only frame 0 is good.
         assert_eq!((j.scored, j.good, j.wrong, j.out_of_view), (3, 1, 1, 1));
+        // The card came back into view on frame 4, and no good pose followed.
+        assert_eq!(j.back, vec![f64::INFINITY]);
         assert!(run.status(1.0).ends_with("| success 33 %"), "{}", run.status(1.0));
         assert!(
             run.summary().contains("success: 33.3 % (1 of 3 frames"),
+            "{}",
+            run.summary()
+        );
+        assert!(
+            run.summary().contains("back in view → good tracking pose after: never"),
             "{}",
             run.summary()
         );
