@@ -277,11 +277,11 @@ fn watch(
             Some((name, status)) if once && name == "capture" && status.success() => {
                 ended.get_or_insert_with(Instant::now);
             }
-            Some((name, status)) if ended.is_none() || name != "capture" => {
+            Some((name, status)) => {
                 bar.finish_and_clear();
                 return Err(anyhow!("photopose {name} stopped ({status}); see its message above"));
             }
-            _ => {}
+            None => {}
         }
         if shown.elapsed() >= every {
             shown = Instant::now();

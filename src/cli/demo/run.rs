@@ -206,9 +206,10 @@ impl Judgement {
                 }
             })
             .collect();
-        let back = match back.is_empty() {
-            true => String::new(),
-            false => format!("\nback in view → good tracking pose after: {}", back.join(", ")),
+        let back = if back.is_empty() {
+            String::new()
+        } else {
+            format!("\nback in view → good tracking pose after: {}", back.join(", "))
         };
         format!(
             "success: {:.1} % ({} of {} frames with ≥ {:.0} % of the card in view got a tracking pose within {mm} mm, {deg}° and {:.0} %)\n\
