@@ -16,7 +16,8 @@
 //! got a `tracking` pose within 20 mm, 10° and 10 % of the truth. The targets
 //! are reported, reached or not; the test asserts that no take has a `tracking` pose
 //! while the card is out of view, each take's regression floor ([`FLOORS`]) and the
-//! ceiling on wrong poses ([`WRONG_CEILING`]).
+//! ceiling on wrong poses ([`WRONG_CEILING`]). `crossed_takes` (ignored; CI runs it in
+//! the optimised test build) plays each take with other takes' cards and walls.
 
 mod play;
 
@@ -94,6 +95,99 @@ fn tracking_sequences() {
     }
 }
 
+/// A ceiling on the `tracking` poses more than 50 mm or 20° off over the crossed takes
+/// ([`crossed_takes`]): 17 on 2026-12-05 (`sweep` with the bowl on the brushes 2,
+/// `occlude` with the cup on the brushes 15; 38 before a doubt needed the verdict's
+/// texture bar to end, with 21 on `yuyv` with the rocket on the boats), plus a margin. A
+/// guard against regressions; the target is 0.
+const CROSSED_WRONG_CEILING: usize = 21;
+
+/// Each take played with another take's card in front of a third one's wall: the card
+/// of the take `k` places on and the wall `2k` places on in [`Scenario::all`], k = 1–6,
+/// so 42 plays of card, wall and motion that nobody tuned for, at the middle timing
+/// (0.6 / 0.1 s). The seven takes were worked on; these check how much of that carries
+/// over. Prints each play's row and the totals; asserts that no play has a `tracking`
+/// pose while the card is out of view and the ceiling on wrong poses
+/// ([`CROSSED_WRONG_CEILING`]).
+#[test]
+#[ignore = "about 8 minutes; CI runs it (see .ci/run)"]
+fn crossed_takes() {
+    let n = Scenario::all().len();
+    let name = |path: &str| path.rsplit('/').next().unwrap_or(path).to_string();
+    let mut plays = Vec::new();
+    println!("\n| k | take | card | wall | success | tracking > 50 mm or 20° off | back after leaving |\n|---|---|---|---|---|---|---|");
+    for k in 1..n {
+        for (i, take) in Scenario::all().iter().enumerate() {
+            let crossed = crossed(i, k);
+            let played = play(&crossed, play::TIMINGS[1]);
+            let back: Vec<String> = played.reacquisitions().iter().map(|s| format!("{s:.2} s")).collect();
+            println!(
+                "| {k} | {} | {} | {} | {:.0} % | {} | {} |",
+                take.name,
+                name(crossed.card.photo),
+                name(crossed.wall),
+                100.0 * played.success(),
+                played.wrong(),
+                if back.is_empty() {
+                    "–".to_string()
+                } else {
+                    back.join(", ")
+                }
+            );
+            plays.push(played);
+        }
+    }
+    let mut success: Vec<f64> = plays.iter().map(play::Played::success).collect();
+    success.sort_by(f64::total_cmp);
+    let wrong: usize = plays.iter().map(play::Played::wrong).sum();
+    println!(
+        "crossed takes: {} plays, median success {:.0} %, {} at 95 % or more; {} with wrong `tracking` poses, {wrong} such poses",
+        plays.len(),
+        100.0 * success[success.len() / 2],
+        success.iter().filter(|s| **s >= 0.95).count(),
+        plays.iter().filter(|p| p.wrong() > 0).count()
+    );
+    play::assert_promises(&plays);
+    assert!(
+        wrong <= CROSSED_WRONG_CEILING,
+        "{wrong} wrong tracking poses in the crossed takes, more than {CROSSED_WRONG_CEILING}"
+    );
+}
+
+/// Take `i` of [`Scenario::all`] with the card of the take `k` places on and the wall
+/// `2k` places on.
+fn crossed(i: usize, k: usize) -> Scenario {
+    let takes = Scenario::all();
+    let n = takes.len();
+    Scenario {
+        card: takes[(i + k) % n].card,
+        wall: takes[(i + 2 * k) % n].wall,
+        ..takes[i].clone()
+    }
+}
+
+/// `yuyv`'s motion with the rocket card on the boats' blue water (`crossed_takes`, k =
+/// 5): the photo's dark blue edges show little there. The second acquisition, 19 % off
+/// in size and 35° off, is rejected by the verdict but shows the photo's pattern
+/// (structure 0.85), so it is followed in doubt. No frame is `tracking` more than 50 mm
+/// or 20° off (measured on 2026-12-05: the doubt ends at 2.67 s, where the texture terms
+/// on every model point vouch for the pose; from there 29 frames are `tracking` within
+/// 6 mm and 19° but 31–36 % short, so the take's success is 0 %). Before, the doubt
+/// ended at stereo 0.7 and structure 0.75, on the second frame after the acquisition,
+/// and 21 `tracking` poses were 20–40° off.
+#[test]
+fn a_doubted_card_on_a_wall_of_its_colour_is_not_tracking_turned_away() {
+    let yuyv = Scenario::all().iter().position(|t| t.name == "yuyv").unwrap();
+    let take = crossed(yuyv, 5);
+    assert_eq!(
+        (take.card.photo, take.wall),
+        ("tests/data/photos/rocket.jpg", "tests/data/backgrounds/boats.jpg")
+    );
+    let played = play(&take, play::TIMINGS[1]);
+    println!("{}", played.timeline());
+    assert_eq!(played.wrong(), 0, "tracking poses more than 50 mm or 20° off");
+}
+
 /// A take with the built-in configuration and the tests' hand–eye transform, frame by
 /// frame, and a fresh tracker of its card.
 struct Take {
@@ -156,13 +250,14 @@ fn an_acquired_card_is_followed_through_the_frames_kept_during_its_search() {
 /// A card acquired at its fastest, on `sweep`'s first frame (600 mm/s, about 10 px of
 /// blur), where the verdict cannot confirm the pose: the acquisition is followed in
 /// doubt through the next frames instead of searched afresh. No frame is `tracking`
-/// more than 50 mm or 20° off (measured: `searching` on frames 1–6, 14–20° off;
-/// `tracking` from frame 7, 15° off, within 10° from frame 10), and from frame 12
-/// (0.4 s) every frame is `tracking` within 10 mm, 10 % and 10° (measured up to 30:
-/// 2.5 mm, 8.6 %, 6.6°). Before, this acquisition was searched afresh and nothing was
-/// `tracking` until a second one was confirmed.
+/// more than 50 mm or 20° off (measured on 2026-12-05: `searching` on frames 1–5,
+/// 9.7–19.2° off; `tracking` from frame 6, where the texture terms vouch for it, 9.9°
+/// off, within 10° after), and from frame 12 (0.4 s) every frame is `tracking` within
+/// 10 mm, 10 % and 10° (measured up to 30: 2.8 mm, 8.7 %, 7.3°). Before, this
+/// acquisition was searched afresh and nothing was `tracking` until a second one was
+/// confirmed.
 #[test]
-fn a_blurred_acquisition_is_followed_in_doubt_until_the_eyes_agree() {
+fn a_blurred_acquisition_is_followed_in_doubt_until_its_texture_vouches() {
     let (mut sweep, mut tracker) = Take::new("sweep");
     let (acquired, state) = sweep.step(&mut tracker, 0);
     println!("acquisition: {acquired:.1?}, {state:?}");
