@@ -117,34 +117,27 @@ fn crossed_takes() {
     let mut plays = Vec::new();
     println!("\n| k | take | card | wall | success | tracking > 50 mm or 20° off | back after leaving |\n|---|---|---|---|---|---|---|");
     for k in 1..n {
-        for (i, take) in Scenario::all().iter().enumerate() {
-            let crossed = crossed(i, k);
-            let played = play(&crossed, play::TIMINGS[1]);
-            let back: Vec<String> = played.reacquisitions().iter().map(|s| format!("{s:.2} s")).collect();
+        for i in 0..n {
+            let take = crossed(i, k);
+            let played = play(&take, play::TIMINGS[1]);
             println!(
                 "| {k} | {} | {} | {} | {:.0} % | {} | {} |",
                 take.name,
-                name(crossed.card.photo),
-                name(crossed.wall),
+                name(take.card.photo),
+                name(take.wall),
                 100.0 * played.success(),
                 played.wrong(),
-                if back.is_empty() {
-                    "–".to_string()
-                } else {
-                    back.join(", ")
-                }
+                played.back()
             );
             plays.push(played);
         }
     }
-    let mut success: Vec<f64> = plays.iter().map(play::Played::success).collect();
-    success.sort_by(f64::total_cmp);
     let wrong: usize = plays.iter().map(play::Played::wrong).sum();
     println!(
         "crossed takes: {} plays, median success {:.0} %, {} at 95 % or more; {} with wrong `tracking` poses, {wrong} such poses",
         plays.len(),
-        100.0 * success[success.len() / 2],
-        success.iter().filter(|s| **s >= 0.95).count(),
+        100.0 * play::Takes(&plays).median_success(),
+        plays.iter().filter(|p| p.success() >= 0.95).count(),
         plays.iter().filter(|p| p.wrong() > 0).count()
     );
     play::assert_promises(&plays);

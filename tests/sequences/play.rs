@@ -203,9 +203,19 @@ impl Played {
             .find(|f| f.judged.good())
             .map_or(f64::INFINITY, |f| f.t)
     }
+    /// The seconds back after each return into view, as the tables print them ("–" for
+    /// none).
+    pub fn back(&self) -> String {
+        let back: Vec<String> = self.reacquisitions().iter().map(|s| format!("{s:.2} s")).collect();
+        if back.is_empty() {
+            "–".to_string()
+        } else {
+            back.join(", ")
+        }
+    }
+
     /// The table's row.
     pub fn row(&self) -> String {
-        let back: Vec<String> = self.reacquisitions().iter().map(|s| format!("{s:.2} s")).collect();
         let mut ms = self.tracking_ms.clone();
         ms.sort_by(f64::total_cmp);
         let p99 = ms
@@ -220,11 +230,7 @@ impl Played {
             self.wrong(),
             self.tracking_out_of_view(),
             self.first_good(),
-            if back.is_empty() {
-                "–".to_string()
-            } else {
-                back.join(", ")
-            },
+            self.back(),
             p99.unwrap_or(f64::NAN)
         )
     }
