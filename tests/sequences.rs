@@ -96,11 +96,12 @@ fn tracking_sequences() {
 }
 
 /// A ceiling on the `tracking` poses more than 50 mm or 20° off over the crossed takes
-/// ([`crossed_takes`]): 17 on 2026-12-05 (`sweep` with the bowl on the brushes 2,
-/// `occlude` with the cup on the brushes 15; 38 before a doubt needed the verdict's
-/// texture bar to end, with 21 on `yuyv` with the rocket on the boats), plus a margin. A
-/// guard against regressions; the target is 0.
-const CROSSED_WRONG_CEILING: usize = 21;
+/// ([`crossed_takes`]): 2 on 2026-12-06 (`sweep` with the bowl on the brushes), plus a
+/// margin; 17 before a pose that drifted while lost needed the eyes' agreement to be
+/// `tracking` on colour (15 on `occlude` with the cup on the brushes), 38 before a doubt
+/// needed the verdict's texture bar to end (21 on `yuyv` with the rocket on the boats).
+/// A guard against regressions; the target is 0.
+const CROSSED_WRONG_CEILING: usize = 4;
 
 /// Each take played with another take's card in front of a third one's wall: the card
 /// of the take `k` places on and the wall `2k` places on in [`Scenario::all`], k = 1–6,
@@ -170,15 +171,33 @@ fn crossed(i: usize, k: usize) -> Scenario {
 /// and 21 `tracking` poses were 20–40° off.
 #[test]
 fn a_doubted_card_on_a_wall_of_its_colour_is_not_tracking_turned_away() {
-    let yuyv = Scenario::all().iter().position(|t| t.name == "yuyv").unwrap();
-    let take = crossed(yuyv, 5);
-    assert_eq!(
-        (take.card.photo, take.wall),
-        ("tests/data/photos/rocket.jpg", "tests/data/backgrounds/boats.jpg")
-    );
+    let scene = ("tests/data/photos/rocket.jpg", "tests/data/backgrounds/boats.jpg");
+    let played = play_crossed("yuyv", 5, scene);
+    assert_eq!(played.wrong(), 0, "tracking poses more than 50 mm or 20° off");
+}
+
+/// `occlude`'s motion with the cup card on the brushes (`crossed_takes`, k = 6). The
+/// forearm hides 70 % of the card, which is lost at 1.73 s; meanwhile the pose drifts
+/// with nothing to hold it. No frame is `tracking` more than 50 mm or 20° off (measured
+/// on 2026-12-06: none, success 68 %). Before a drifted pose needed its eyes to agree on
+/// every point to be `tracking` on colour, 15 frames from 2.00 s were, 20–26 mm and
+/// 26–35° off, on `F_L + F_R` alone (success 65 %).
+#[test]
+fn a_pose_that_drifted_behind_an_occluder_is_not_tracking_on_colour_alone() {
+    let scene = ("tests/data/photos/coffee.jpg", "tests/data/backgrounds/brushes.jpg");
+    let played = play_crossed("occlude", 6, scene);
+    assert_eq!(played.wrong(), 0, "tracking poses more than 50 mm or 20° off");
+}
+
+/// The take `name` crossed `k` places on ([`crossed`]), which must show `scene` (the
+/// card's photo and the wall), played at the middle timing; prints its timeline.
+fn play_crossed(name: &str, k: usize, scene: (&str, &str)) -> play::Played {
+    let i = Scenario::all().iter().position(|t| t.name == name).unwrap();
+    let take = crossed(i, k);
+    assert_eq!((take.card.photo, take.wall), scene);
     let played = play(&take, play::TIMINGS[1]);
     println!("{}", played.timeline());
-    assert_eq!(played.wrong(), 0, "tracking poses more than 50 mm or 20° off");
+    played
 }
 
 /// A take with the built-in configuration and the tests' hand–eye transform, frame by

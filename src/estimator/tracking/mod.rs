@@ -85,6 +85,16 @@ pub const RELOCATE_GENERATIONS: usize = 12;
 /// and 30 mm off in depth it still scores 0.88 of the truth.
 const DOUBT_SHARE: f64 = 0.95;
 
+/// The least stereo term on every point at which `F_L + F_R` calls a pose `tracking`
+/// again after a frame below `lost_fitness` (until a `tracking` frame or a whole-frame
+/// search): while the card was hidden, the pose drifted with nothing to hold it. With
+/// the cup card on a wall of brushes (`crossed_takes`), the forearm hid 70 % of the card;
+/// as it withdrew, the drifted pose, 20–26 mm and 26–35° off, regained the share of the
+/// best `F_L + F_R` on colour alone while its eyes agreed at 0.42–0.62, and 15 frames
+/// were called `tracking` so. The right pose read 0.95 when it was found again; where
+/// the verdict's stereo ramp starts, this bar changed none of the seven takes.
+const DRIFT_STEREO: f64 = 0.7;
+
 /// Whether the two eyes agree at a pose as the verdict asks ([`verify::stereo_holds`]) on
 /// every point of `texture`, or on all but those where they disagree far more than at
 /// most (`stereo_trimmed`): an occluder's edge, seen at another place by each eye. Under
@@ -153,6 +163,9 @@ pub struct Tracker {
     /// The last relocation was not judged found: tracking needs [`DOUBT_SHARE`] of the
     /// acquisition's `F_L + F_R` until a frame is tracked.
     doubted: bool,
+    /// A frame fell below `lost_fitness` since the last `tracking` one or whole-frame
+    /// search: the pose drifted while the card was hidden ([`DRIFT_STEREO`]).
+    drifted: bool,
     /// The best genes of the last `tracking` frame.
     anchor: Option<Genes>,
     /// Recoveries left before the next acquisition.
@@ -179,6 +192,7 @@ impl Tracker {
             frames: 0,
             relocating: false,
             doubted: false,
+            drifted: false,
             anchor: None,
             recoveries: 0,
             held_size: None,
@@ -354,7 +368,9 @@ impl Tracker {
     ///   ([`verify::stereo_holds`]): blur lowers the `f` of the right pose, not the two
     ///   eyes' agreement on it. So does something in front of the card; the eyes then
     ///   disagree where it lies, and the agreement is also read without those points
-    ///   (`stereo_trimmed`, [`Problem::stereo_trimmed_judged`]).
+    ///   (`stereo_trimmed`, [`Problem::stereo_trimmed_judged`]). After a frame below
+    ///   `lost_fitness`, colour also needs the eyes to agree on every point
+    ///   ([`DRIFT_STEREO`]).
     ///
     /// Never below `lost_fitness`.
     fn judge(&mut self, f: f64, acquired: bool, texture: &Texture, stereo_trimmed: impl FnOnce() -> f64) -> TrackState {
@@ -365,12 +381,15 @@ impl Tracker {
             self.settings.min_fitness_share
         };
         let colour = f >= self.settings.min_fitness
+            && (!self.drifted || texture.stereo >= DRIFT_STEREO)
             && (f >= share * self.best_f || !self.doubted && eyes_agree(texture, stereo_trimmed));
         let tracked = verify::texture_vouches(texture) || colour;
         self.searching = if tracked { 0 } else { self.searching + 1 };
         self.doubted &= !tracked;
+        self.drifted &= !tracked;
         // Below the floor (or NaN) the pose is never called tracked.
         if f.is_nan() || f < self.settings.lost_fitness {
+            self.drifted = true;
             TrackState::Lost
         } else if tracked {
             TrackState::Tracking
@@ -420,6 +439,7 @@ impl Tracker {
         self.pop.seed_around(problem, best, n, sigma, &mut self.rng);
         self.relocating = true;
         self.doubted = false;
+        self.drifted = false;
         self.searching = 0;
         self.last_best = None;
         self.velocity = [0.0; GENES];
@@ -430,6 +450,7 @@ impl Tracker {
     /// settle around it.
     fn relocate(&mut self, problem: &Problem, from: Option<Genes>) {
         self.relocating = false;
+        self.drifted = false;
         let Some(from) = from else {
             return;
         };
@@ -635,6 +656,25 @@ mod tests {
         assert_eq!(tracker.judge(0.9, false, &BESIDE, || 0.95), S);
         tracker.doubt();
         assert_eq!(tracker.judge(1.3, false, &BESIDE, || 0.95), S);
+    }
+
+    /// After a frame below the floor, the pose drifted: `F_L + F_R` calls it tracked again
+    /// only where the eyes agree on every point too.
+    #[test]
+    fn a_pose_that_drifted_while_lost_is_not_tracking_on_colour_alone() {
+        let mut tracker = tracker();
+        assert_eq!(tracker.judge(1.95, true, &NONE, || 0.0), T);
+        assert_eq!(tracker.judge(0.4, false, &NONE, || 0.0), L);
+        // 1.8 is above 0.85 × 1.95, but the eyes disagree (0.5) on every point.
+        let drifted = texture(0.5, 0.8);
+        assert_eq!(tracker.judge(1.8, false, &drifted, || 0.95), S);
+        assert_eq!(tracker.judge(1.8, false, &texture(0.75, 0.8), || 0.95), T);
+        // A tracked frame ends it.
+        assert_eq!(tracker.judge(1.8, false, &drifted, || 0.95), T);
+        // The texture vouches whatever the colour.
+        assert_eq!(tracker.judge(0.4, false, &NONE, || 0.0), L);
+        assert_eq!(tracker.judge(0.8, false, &VOUCHES, || 0.0), T);
+        assert_eq!(tracker.judge(1.8, false, &drifted, || 0.95), T);
     }
 
     #[test]
