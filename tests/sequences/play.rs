@@ -203,6 +203,7 @@ impl Played {
             .find(|f| f.judged.good())
             .map_or(f64::INFINITY, |f| f.t)
     }
+
     /// The seconds back after each return into view, as the tables print them ("–" for
     /// none).
     pub fn back(&self) -> String {
