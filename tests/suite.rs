@@ -350,7 +350,7 @@ fn estimate(case: &Case, r: &Rendered) -> report::Row {
 /// the verdict's promise and the floors (on the robust mode; the paper mode is shown for
 /// comparison).
 #[test]
-#[ignore = "about 2 minutes of estimates; CI runs it (see .ci/run)"]
+#[ignore = "about 4 minutes of estimates; CI runs it (see .ci/run)"]
 fn suite_scenes() {
     // `SCENES=cup-room,astro-dogs` runs only those scenes, `SEARCH_SEED=2` searches
     // from another seed than the configured one (either: no file, no floors).
@@ -391,7 +391,7 @@ fn suite_scenes() {
 /// none of them found; every search of a frame without the object is retried, so each
 /// takes all of them. CI runs it with the suite (the `suite_scenes` filter).
 #[test]
-#[ignore = "about 2 minutes of estimates; CI runs it (see .ci/run)"]
+#[ignore = "about 4 minutes of estimates; CI runs it (see .ci/run)"]
 fn suite_scenes_without_the_object_are_not_found() {
     use photopose::estimator::oneshot;
     let cases = table::all();

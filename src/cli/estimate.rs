@@ -190,9 +190,9 @@ mod tests {
         assert_eq!(bar.message(), "generations");
         assert_eq!(bar.position(), 1000);
         progress(3);
-        assert_eq!(bar.message(), "search 2 of up to 5: generations");
+        assert_eq!(bar.message(), "search 2 of up to 6: generations");
         assert_eq!(bar.position(), 3);
         (4..=1000).chain([0]).for_each(&mut progress);
-        assert_eq!(bar.message(), "search 3 of up to 5: generations");
+        assert_eq!(bar.message(), "search 3 of up to 6: generations");
     }
 }

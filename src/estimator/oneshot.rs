@@ -229,16 +229,23 @@ struct Retry {
     tilted: bool,
     /// Its scan is dense and ranks by structure too (a wall of the card's colours).
     dense: bool,
+    /// Its result is kept only where the verdict finds it. A dense scan one level finer
+    /// reaches the smallest placements all over the image; where it finds nothing, its
+    /// best may outscore a nearer pose of the searches before by a hair.
+    found_only: bool,
 }
 
 impl Retry {
     /// Search 0 is the plain one; 1 starts finer, 2 scans tilted, 3 both; 4 and later
-    /// scan densely (the slowest, when the others found nothing), every second one finer.
+    /// scan densely (the slowest, when the others found nothing), every second one finer
+    /// and then over small apparent sizes only ([`Problem::scan_small_only`]);
+    /// from 5 on a result counts only where it is found.
     fn of(attempt: u64) -> Self {
         Self {
             finer: attempt % 2 == 1,
             tilted: (2..4).contains(&attempt),
             dense: attempt >= 4,
+            found_only: attempt >= 5,
         }
     }
 }
@@ -257,8 +264,8 @@ pub fn run(
 }
 
 /// Runs the configured GA on an already prepared frame; in robust mode it searches
-/// again from the next seed while the verdict finds nothing (`[robust] retries`) and keeps
-/// the best-scoring result.
+/// again from the next seed while the verdict finds nothing (`[robust] retries`, each
+/// search as `Retry::of` plans it) and keeps the best-scoring result.
 pub fn search(
     prepared: &Prepared,
     config: &Config,
@@ -306,6 +313,7 @@ pub fn search_observed(
         let mut problem = prepared.problem_on(config, levels);
         problem.observer = shifted.as_ref().map(|o| o as ga::observe::Observer<'_>);
         problem.scan_dense = retry.dense;
+        problem.scan_small_only = retry.dense && retry.finer;
         if retry.tilted {
             problem.scan_tilt = RETRY_SCAN_TILT_DEG.to_radians();
         }
@@ -316,7 +324,7 @@ pub fn search_observed(
         }
         prepared.settle_plane(&problem, &mut outcome);
         let found = outcome.verdict.found;
-        best = Some(better(best, outcome));
+        best = Some(better(best, outcome, found || !retry.found_only));
         if found {
             break;
         }
@@ -326,14 +334,14 @@ pub fn search_observed(
     best
 }
 
-/// The higher-scoring of two searches' outcomes (of equal scores the earlier), counting
-/// the searches and evaluations of both.
-fn better(earlier: Option<Outcome>, later: Outcome) -> Outcome {
+/// The higher-scoring of two searches' outcomes (of equal scores, or where the later one
+/// does not `contend`, the earlier), counting the searches and evaluations of both.
+fn better(earlier: Option<Outcome>, later: Outcome, contends: bool) -> Outcome {
     match earlier {
         None => later,
         Some(e) => {
             let (evaluations, searches) = (e.evaluations + later.evaluations, e.searches + later.searches);
-            let kept = if e.fitness.score >= later.fitness.score {
+            let kept = if !contends || e.fitness.score >= later.fitness.score {
                 e
             } else {
                 later
@@ -442,20 +450,69 @@ pub fn score_at(
 
 #[cfg(test)]
 mod tests {
-    use super::Retry;
+    use nalgebra::Vector3;
+
+    use super::{better, Retry};
+    use crate::estimator::fitness::Fitness;
+    use crate::estimator::ga::Outcome;
+    use crate::estimator::pose::PoseSize;
+    use crate::estimator::verify::Verdict;
+
+    /// One search's outcome: `x` mm along the hand's x, scoring `score`, found or not.
+    fn outcome(x: f64, score: f64, found: bool) -> Outcome {
+        Outcome {
+            best: PoseSize {
+                position: Vector3::new(x, 0.0, 600.0),
+                eps: Vector3::zeros(),
+                alpha: 2.0,
+                k: 1.0,
+            },
+            fitness: Fitness {
+                score,
+                ..Fitness::default()
+            },
+            generations: 300,
+            searches: 1,
+            evaluations: 1000,
+            snapshots: Vec::new(),
+            verdict: Verdict {
+                found,
+                ..Verdict::default()
+            },
+        }
+    }
+
+    #[test]
+    fn a_later_search_is_kept_where_it_scores_higher_and_contends() {
+        let kept = |later: Outcome, contends: bool| better(Some(outcome(0.0, 5.40, false)), later, contends);
+        // Higher and contending: kept, both searches counted.
+        let higher = kept(outcome(1.0, 5.49, false), true);
+        assert_eq!(
+            (higher.best.position.x, higher.searches, higher.evaluations),
+            (1.0, 2, 2000)
+        );
+        // The last retry's result, not found, does not contend however it scores.
+        assert_eq!(kept(outcome(1.0, 5.49, false), false).best.position.x, 0.0);
+        // Equal scores keep the earlier.
+        assert_eq!(kept(outcome(1.0, 5.40, true), true).best.position.x, 0.0);
+        assert_eq!(better(None, outcome(2.0, 1.0, false), false).best.position.x, 2.0);
+    }
 
     #[test]
     fn retries_start_finer_then_tilt_then_scan_densely() {
-        let plan: Vec<[bool; 3]> = (0..6).map(Retry::of).map(|r| [r.finer, r.tilted, r.dense]).collect();
+        let plan: Vec<[bool; 4]> = (0..6)
+            .map(Retry::of)
+            .map(|r| [r.finer, r.tilted, r.dense, r.found_only])
+            .collect();
         assert_eq!(
             plan,
             [
-                [false, false, false],
-                [true, false, false],
-                [false, true, false],
-                [true, true, false],
-                [false, false, true],
-                [true, false, true],
+                [false, false, false, false],
+                [true, false, false, false],
+                [false, true, false, false],
+                [true, true, false, false],
+                [false, false, true, false],
+                [true, false, true, true],
             ]
         );
     }

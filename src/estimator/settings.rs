@@ -199,7 +199,8 @@ pub struct RobustSettings {
     /// brightness. 0 leaves them out (and makes every result's verdict "not found").
     pub texture_weight: f64,
     /// One-shot searches run again, each from the next seed, while the verdict finds
-    /// nothing; the best-scoring result of all is kept. 0 searches once.
+    /// nothing; the best-scoring result of all is kept (of the fifth retry and later,
+    /// only where found). 0 searches once.
     pub retries: usize,
 }
 
@@ -261,7 +262,7 @@ impl Default for RobustSettings {
             min_extent_px: 24.0,
             stereo_weight: 0.5,
             texture_weight: 3.0,
-            retries: 4,
+            retries: 5,
         }
     }
 }

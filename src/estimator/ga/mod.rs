@@ -206,6 +206,9 @@ pub struct Problem<'a> {
     /// pass by the structure term as well as by colour (see [`scan`]): slower, for a
     /// retry where the colours of the wall match the card's.
     pub scan_dense: bool,
+    /// The acquisition scan tries only small apparent sizes (see [`scan`]): for a scan
+    /// on a level finer than the pyramid's coarsest, which sees the larger ones well.
+    pub scan_small_only: bool,
 }
 
 impl<'a> Problem<'a> {
@@ -227,6 +230,7 @@ impl<'a> Problem<'a> {
             observer: None,
             scan_tilt: 0.0,
             scan_dense: false,
+            scan_small_only: false,
         }
     }
 

@@ -19,6 +19,9 @@ const STEP_PX: f64 = 3.0;
 const SIZES: usize = 8;
 const DENSE_SIZES: usize = 12;
 const LARGEST_FRACTION: f64 = 0.6;
+/// The largest apparent size (full-resolution pixels) a scan of small sizes only tries
+/// ([`Problem::scan_small_only`]): 32 px on a quarter-resolution level.
+const SMALL_PX: f64 = 128.0;
 /// In-plane rotations, evenly spaced over the full turn: 45° apart, or 22.5° in a dense
 /// scan.
 const ROLLS: usize = 8;
@@ -178,9 +181,10 @@ impl<'p, 'a> Scan<'p, 'a> {
     }
 
     /// Every placement: the left image's pixels every [`STEP_PX`], at [`SIZES`] apparent
-    /// sizes from the smallest allowed extent to a large share of the image, and
-    /// [`ROLLS`] in-plane rotations ([`DENSE_SIZES`] and [`DENSE_ROLLS`] in a dense
-    /// scan), facing or tilted (see [`Scan::orientations`]).
+    /// sizes from the smallest allowed extent to a large share of the image (those up
+    /// to [`SMALL_PX`] only, where [`Problem::scan_small_only`]), and [`ROLLS`] in-plane
+    /// rotations ([`DENSE_SIZES`] and [`DENSE_ROLLS`] in a dense scan), facing or tilted
+    /// (see [`Scan::orientations`]).
     fn placements(&self) -> Grid {
         let (lv, problem) = (self.level, self.problem);
         let (w, h) = (lv.rig.width as f64, lv.rig.height as f64);
@@ -202,6 +206,7 @@ impl<'p, 'a> Scan<'p, 'a> {
             pixels,
             sizes: (0..sizes)
                 .map(|si| smallest * (largest / smallest).powf(si as f64 / (sizes - 1) as f64))
+                .filter(|&s| !problem.scan_small_only || s * fx_full <= SMALL_PX)
                 .collect(),
             orientations: self.orientations(),
         }
