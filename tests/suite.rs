@@ -350,7 +350,7 @@ fn estimate(case: &Case, r: &Rendered) -> report::Row {
 /// the verdict's promise and the floors (on the robust mode; the paper mode is shown for
 /// comparison).
 #[test]
-#[ignore = "about 4 minutes of estimates; CI runs it (see .ci/run)"]
+#[ignore = "about 6 minutes of estimates; CI runs it (see .ci/run)"]
 fn suite_scenes() {
     // `SCENES=cup-room,astro-dogs` runs only those scenes, `SEARCH_SEED=2` searches
     // from another seed than the configured one (either: no file, no floors).
