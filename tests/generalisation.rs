@@ -380,22 +380,16 @@ fn generalisation_scenes_are_estimated_or_flagged() {
 /// region then.
 #[test]
 fn the_tilted_scan_sees_a_card_the_facing_scan_misses() {
-    use photopose::estimator::ga::scan;
     use photopose::estimator::oneshot::Prepared;
     let d = draw(38);
     let mut config = d.config.clone();
     // The finer retries' levels: the scan runs on the half resolution.
     config.robust.pyramid_levels = 2;
     let prepared = Prepared::new(&d.model, &d.images, &config).expect("calibrated");
-    let truth = d.hand_from_model.translation.vector;
     let distances = |tilt_deg: f64| -> Vec<f64> {
         let mut problem = prepared.problem(&config);
         problem.scan_tilt = tilt_deg.to_radians();
-        let regions = scan::seeds(&problem, 40).regions;
-        regions
-            .iter()
-            .map(|g| (problem.bounds.decode(g).position - truth).norm())
-            .collect()
+        scan_region_distances(&problem, &d)
     };
     let facing = distances(0.0);
     let nearest = facing.iter().copied().fold(f64::INFINITY, f64::min);
@@ -411,10 +405,8 @@ fn the_tilted_scan_sees_a_card_the_facing_scan_misses() {
 /// region (6 mm off).
 #[test]
 fn the_fine_dense_scan_sees_a_small_card_the_coarse_one_misses() {
-    use photopose::estimator::ga::scan;
     use photopose::estimator::oneshot::Prepared;
     let d = draw(200);
-    let truth = d.hand_from_model.translation.vector;
     let distances = |levels: usize| -> Vec<f64> {
         let mut config = d.config.clone();
         config.robust.pyramid_levels = levels;
@@ -422,17 +414,24 @@ fn the_fine_dense_scan_sees_a_small_card_the_coarse_one_misses() {
         let mut problem = prepared.problem(&config);
         problem.scan_dense = true;
         problem.scan_small_only = levels < d.config.robust.pyramid_levels;
-        let regions = scan::seeds(&problem, 40).regions;
-        regions
-            .iter()
-            .map(|g| (problem.bounds.decode(g).position - truth).norm())
-            .collect()
+        scan_region_distances(&problem, &d)
     };
     let coarse = distances(d.config.robust.pyramid_levels);
     let nearest = coarse.iter().copied().fold(f64::INFINITY, f64::min);
     assert!(nearest > 40.0, "a coarse region came {nearest:.0} mm near");
     let fine = distances(d.config.robust.pyramid_levels - 1);
     assert!(fine[0] < 20.0, "the best fine region is {:.0} mm off", fine[0]);
+}
+
+/// How far (mm) from scene `d`'s truth lies each region the acquisition scan of
+/// `problem` keeps, best first.
+fn scan_region_distances(problem: &photopose::estimator::ga::Problem, d: &Drawn) -> Vec<f64> {
+    let truth = d.hand_from_model.translation.vector;
+    photopose::estimator::ga::scan::seeds(problem, 40)
+        .regions
+        .iter()
+        .map(|g| (problem.bounds.decode(g).position - truth).norm())
+        .collect()
 }
 
 /// The left image's ridge at a steep tilt: the truth's plane turned 3° about the
