@@ -40,7 +40,7 @@ const CARDS: [(&str, [i64; 4]); 4] = [
 ];
 
 /// Share of scenes within 10 mm, 5 % and 5° measured on 2026-12-03: 39 of 40 (27 of
-/// 27 clean, 12 of 13 noisy: 92.3 %; over eight draws the noisy share is 74.8 %, the
+/// 27 clean, 12 of 13 noisy: 92.3 %; over eight draws the noisy share is 75.7 %, the
 /// target is not reached); the floor is 2 scenes below (a guard against regressions,
 /// not the target).
 const SUCCESS_FLOOR: f64 = 0.925;
@@ -538,6 +538,30 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
         let (_, prepared, truth) = prepared_truth(i);
         let kept = hidden::uncovered(&prepared.two_eyes(), &truth, prepared.scorer.box_px);
         assert_eq!(kept, truth, "scene {i}");
+    }
+}
+
+/// The search may shrink a model onto the visible part of a card and turn it a few
+/// degrees as well: on noisy scene 292 of the eighth draw (a cat card tilted 37° and
+/// 116 px across at FHD, a blue bar over 22 % of it, defocus) the model kept 86 % of
+/// the length and 53 % of the width, 10.7° off in rotation (mostly its roll), and its
+/// sides grown at that roll ended 19 % off in size. The truth cut by a quarter on the
+/// bar's side and turned 4° or 8° either way grows and turns back to within 2 mm, 2 %
+/// and 1°.
+#[test]
+fn a_shrunk_and_turned_model_is_grown_and_turned_back() {
+    use photopose::estimator::verify::hidden;
+    let d = draw(292);
+    let (prepared, truth) = (d.prepared(), d.truth());
+    let box_px = prepared.scorer.box_px;
+    for roll in [-8.0f64, -4.0, 4.0, 8.0] {
+        let cut = truth
+            .resized(box_px, false, 0.75, -0.5)
+            .turned(Vector3::z(), roll.to_radians());
+        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px);
+        let [before, after] = [cut, grown].map(|p| errors(&d, &p));
+        let what = format!("turned {roll}°: {before:.3?} -> {after:.3?} (mm, size, °)");
+        assert!(after[0] < 2.0 && after[1] < 0.02 && after[2] < 1.0, "{what}");
     }
 }
 
