@@ -68,17 +68,17 @@ pub fn uncovered(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
         grown[k] = true;
     }
     if grown.contains(&true) {
-        best = lined_up(two, c, best, box_px);
+        best = lined_up(two, c, (best, at), box_px);
     }
     best
 }
 
-/// `q` with its edges and its roll about its normal climbed in turn while that lines the
-/// photo up better with `shown`'s part of the image, up to [`ROUNDS`] times. A model
-/// shrunk onto the part of the card a bar leaves visible often sits turned a few degrees
-/// as well; its sides grown at that roll land the size 10–20 % off, and each climb alone
-/// stops where the other's error holds it.
-fn lined_up(two: &TwoEyes, shown: &PoseSize, mut q: PoseSize, box_px: [f64; 2]) -> PoseSize {
+/// `q` (lining the photo up with `shown`'s part of the image to `at`) with its edges and
+/// its roll about its normal climbed in turn while that lines it up better, up to
+/// [`ROUNDS`] times. A model shrunk onto the part of the card a bar leaves visible often
+/// sits turned a few degrees as well; its sides grown at that roll land the size 10–20 %
+/// off, and each climb alone stops where the other's error holds it.
+fn lined_up(two: &TwoEyes, shown: &PoseSize, (mut q, mut at): (PoseSize, f64), box_px: [f64; 2]) -> PoseSize {
     let edges = |q: &PoseSize, step: f64| {
         SIDES
             .iter()
@@ -86,12 +86,11 @@ fn lined_up(two: &TwoEyes, shown: &PoseSize, mut q: PoseSize, box_px: [f64; 2]) 
             .collect()
     };
     let roll = |q: &PoseSize, step: f64| [step, -step].map(|a| q.turned(Vector3::z(), a)).to_vec();
-    let mut at = alignment(two, shown, &q, box_px);
     for _ in 0..ROUNDS {
-        let (next, _) = climbed(two, shown, q, box_px, EDGE_STEPS, edges);
-        let (next, a) = climbed(two, shown, next, box_px, ROLL_STEPS_RAD, roll);
+        let edged = climbed(two, shown, (q, at), box_px, EDGE_STEPS, edges);
+        let (next, a) = climbed(two, shown, edged, box_px, ROLL_STEPS_RAD, roll);
         let gained = a > at + 1e-4;
-        (q, at) = (next, a.max(at));
+        (q, at) = (next, a);
         if !gained {
             break;
         }
@@ -107,18 +106,17 @@ const ROUNDS: usize = 6;
 const EDGE_STEPS: [f64; 2] = [0.04, 0.005];
 const ROLL_STEPS_RAD: [f64; 2] = [0.0698, 0.0043];
 
-/// `q` after a climb that takes the best of `moves(q, step)` while it lines the photo up
-/// better with `shown`'s part of the image, halving the step from `steps[0]` to
-/// `steps[1]` whenever none does; and that alignment.
+/// `q` (lining the photo up with `shown`'s part of the image to `at`) after a climb that
+/// takes the best of `moves(q, step)` while it lines it up better, halving the step from
+/// `steps[0]` to `steps[1]` whenever none does; and that alignment.
 fn climbed(
     two: &TwoEyes,
     shown: &PoseSize,
-    mut q: PoseSize,
+    (mut q, mut at): (PoseSize, f64),
     box_px: [f64; 2],
     steps: [f64; 2],
     moves: impl Fn(&PoseSize, f64) -> Vec<PoseSize>,
 ) -> (PoseSize, f64) {
-    let mut at = alignment(two, shown, &q, box_px);
     let mut step = steps[0];
     while step >= steps[1] {
         let best = moves(&q, step)
