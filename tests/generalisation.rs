@@ -565,6 +565,36 @@ fn a_shrunk_and_turned_model_is_grown_and_turned_back() {
     }
 }
 
+/// Under blur, a colour cast and a bar, the search can end a few per cent long or short
+/// along one axis, about the card's centre, where no side's growth lines the photo up
+/// clearly better: scene 224 of the sixth draw (a coffee card, defocused, under a bar)
+/// ended 7.1 % short, scene 313 of the eighth 6.3 %. A result the verdict does not find
+/// has its edges and roll climbed on that alignment ([`hidden::realigned`]): the truth
+/// of each, cut or stretched by 7 % along either axis, comes back within 3 %; the truth
+/// stays within 3 %.
+#[test]
+fn a_model_a_few_per_cent_off_in_size_is_realigned() {
+    use photopose::estimator::verify::hidden;
+    for i in [224, 313] {
+        let d = draw(i);
+        let (prepared, truth) = (d.prepared(), d.truth());
+        let box_px = prepared.scorer.box_px;
+        let kept = errors(&d, &hidden::realigned(&prepared.two_eyes(), &truth, box_px));
+        assert!(
+            kept[0] < 2.0 && kept[1] < 0.03 && kept[2] < 1.0,
+            "scene {i}, the truth: {kept:.3?}"
+        );
+        for (length, factor) in [(true, 0.93), (false, 0.93), (true, 1.07), (false, 1.07)] {
+            let off = truth.resized(box_px, length, factor, 0.0);
+            let back = hidden::realigned(&prepared.two_eyes(), &off, box_px);
+            let [before, after] = [off, back].map(|p| errors(&d, &p));
+            let what = format!("scene {i}, length {length} ×{factor}: {before:.3?} -> {after:.3?} (mm, size, °)");
+            assert!(after[0] < 2.0 && after[1] < 0.03 && after[2] < 1.5, "{what}");
+            println!("{what}");
+        }
+    }
+}
+
 /// A search can end on a local peak of the full resolution that the half resolution's
 /// wider peak leads out of: on clean scene 109 of the third draw (a cat card tilted 40°
 /// on a dark helmet) it returned a model 14.6 mm off, 42 % short and turned 24°, scoring

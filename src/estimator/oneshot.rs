@@ -126,10 +126,14 @@ impl Prepared {
     }
 
     /// `outcome`'s pose with the sides grown that something in front of the card hid
-    /// ([`hidden::uncovered`]), its fitness and verdict read again; unchanged if no
-    /// side grows or the grown pose leaves the search space.
+    /// ([`hidden::uncovered`]), or, where none grows and the verdict does not find it,
+    /// with its edges and roll lined up with the photo ([`hidden::realigned`]); its
+    /// fitness and verdict read again. Unchanged if the new pose leaves the search space.
     fn uncover(&self, problem: &Problem, outcome: &mut Outcome) {
-        let grown = hidden::uncovered(&self.two_eyes(), &outcome.best, self.scorer.box_px);
+        let mut grown = hidden::uncovered(&self.two_eyes(), &outcome.best, self.scorer.box_px);
+        if grown == outcome.best && !outcome.verdict.found {
+            grown = hidden::realigned(&self.two_eyes(), &outcome.best, self.scorer.box_px);
+        }
         if grown == outcome.best || !problem.bounds.contains(&grown) {
             return;
         }

@@ -6,7 +6,8 @@
 //! photo's brightness is correlated with the left eye's on the part the result covered
 //! only; a side whose growth lines the photo up clearly better is grown, or both sides
 //! of an axis about the centre. The grown model's edges and its roll are then climbed
-//! in turn on the same correlation. (The right eye sees a nearer occluder's edge
+//! in turn on the same correlation; so are a result's that the verdict does not find
+//! where no side grows ([`realigned`]). (The right eye sees a nearer occluder's edge
 //! shifted into that part, so it is not read.)
 
 use nalgebra::Vector3;
@@ -71,6 +72,15 @@ pub fn uncovered(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
         best = lined_up(two, c, (best, at), box_px);
     }
     best
+}
+
+/// `c` with its edges and roll climbed in turn while the photo's texture lines up
+/// better with the part of the image that `c` covers, as after a growth in
+/// [`uncovered`], but from `c` itself. Under blur, a colour cast and a bar, a search
+/// can end a few per cent long or short along one axis about the card's centre, where
+/// no side's growth gains enough to be taken.
+pub fn realigned(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
+    lined_up(two, c, (*c, alignment(two, c, c, box_px)), box_px)
 }
 
 /// `q` (lining the photo up with `shown`'s part of the image to `at`) with its edges and
