@@ -510,7 +510,7 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
         let box_px = prepared.scorer.box_px;
         for (length, side) in [(false, -0.5), (true, -0.5), (true, 0.5), (false, 0.5)] {
             let cut = truth.resized(box_px, length, 0.75, side);
-            let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px);
+            let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px, false);
             let [before, after] = [cut, grown].map(|p| errors(&d, &p));
             let what = format!("scene {i}, side {length} {side}: {before:.3?} -> {after:.3?} (mm, size, °)");
             if !length && side < 0.0 {
@@ -527,7 +527,7 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
         let (d, prepared, truth) = prepared_truth(i);
         let box_px = prepared.scorer.box_px;
         let cut = truth.resized(box_px, true, 0.7, 0.0);
-        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px);
+        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px, false);
         let [before, after] = [cut, grown].map(|p| errors(&d, &p));
         let what = format!("scene {i}, about the centre: {before:.3?} -> {after:.3?} (mm, size, °)");
         assert!(i != 43 || (after[0] < 2.0 && after[1] < 0.02), "{what}");
@@ -536,7 +536,7 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
     }
     for i in [5, 24] {
         let (_, prepared, truth) = prepared_truth(i);
-        let kept = hidden::uncovered(&prepared.two_eyes(), &truth, prepared.scorer.box_px);
+        let kept = hidden::uncovered(&prepared.two_eyes(), &truth, prepared.scorer.box_px, false);
         assert_eq!(kept, truth, "scene {i}");
     }
 }
@@ -558,7 +558,7 @@ fn a_shrunk_and_turned_model_is_grown_and_turned_back() {
         let cut = truth
             .resized(box_px, false, 0.75, -0.5)
             .turned(Vector3::z(), roll.to_radians());
-        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px);
+        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px, false);
         let [before, after] = [cut, grown].map(|p| errors(&d, &p));
         let what = format!("turned {roll}°: {before:.3?} -> {after:.3?} (mm, size, °)");
         assert!(after[0] < 2.0 && after[1] < 0.02 && after[2] < 1.0, "{what}");
@@ -569,7 +569,8 @@ fn a_shrunk_and_turned_model_is_grown_and_turned_back() {
 /// along one axis, about the card's centre, where no side's growth lines the photo up
 /// clearly better: scene 224 of the sixth draw (a coffee card, defocused, under a bar)
 /// ended 7.1 % short, scene 313 of the eighth 6.3 %. A result the verdict does not find
-/// has its edges and roll climbed on that alignment ([`hidden::realigned`]): the truth
+/// has its edges and roll climbed on that alignment even where no side grows
+/// ([`hidden::uncovered`] with `line_up_anyway`): the truth
 /// of each, cut or stretched by 7 % along either axis, comes back within 3 %; the truth
 /// stays within 3 %.
 #[test]
@@ -579,14 +580,14 @@ fn a_model_a_few_per_cent_off_in_size_is_realigned() {
         let d = draw(i);
         let (prepared, truth) = (d.prepared(), d.truth());
         let box_px = prepared.scorer.box_px;
-        let kept = errors(&d, &hidden::realigned(&prepared.two_eyes(), &truth, box_px));
+        let kept = errors(&d, &hidden::uncovered(&prepared.two_eyes(), &truth, box_px, true));
         assert!(
             kept[0] < 2.0 && kept[1] < 0.03 && kept[2] < 1.0,
             "scene {i}, the truth: {kept:.3?}"
         );
         for (length, factor) in [(true, 0.93), (false, 0.93), (true, 1.07), (false, 1.07)] {
             let off = truth.resized(box_px, length, factor, 0.0);
-            let back = hidden::realigned(&prepared.two_eyes(), &off, box_px);
+            let back = hidden::uncovered(&prepared.two_eyes(), &off, box_px, true);
             let [before, after] = [off, back].map(|p| errors(&d, &p));
             let what = format!("scene {i}, length {length} ×{factor}: {before:.3?} -> {after:.3?} (mm, size, °)");
             assert!(after[0] < 2.0 && after[1] < 0.03 && after[2] < 1.5, "{what}");

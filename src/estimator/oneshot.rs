@@ -126,14 +126,12 @@ impl Prepared {
     }
 
     /// `outcome`'s pose with the sides grown that something in front of the card hid
-    /// ([`hidden::uncovered`]), or, where none grows and the verdict does not find it,
-    /// with its edges and roll lined up with the photo ([`hidden::realigned`]); its
-    /// fitness and verdict read again. Unchanged if the new pose leaves the search space.
+    /// and its edges and roll lined up with the photo ([`hidden::uncovered`]; where no
+    /// side grows, only if the verdict does not find it); its fitness and verdict read
+    /// again. Unchanged if the new pose leaves the search space.
     fn uncover(&self, problem: &Problem, outcome: &mut Outcome) {
-        let mut grown = hidden::uncovered(&self.two_eyes(), &outcome.best, self.scorer.box_px);
-        if grown == outcome.best && !outcome.verdict.found {
-            grown = hidden::realigned(&self.two_eyes(), &outcome.best, self.scorer.box_px);
-        }
+        let box_px = self.scorer.box_px;
+        let grown = hidden::uncovered(&self.two_eyes(), &outcome.best, box_px, !outcome.verdict.found);
         if grown == outcome.best || !problem.bounds.contains(&grown) {
             return;
         }

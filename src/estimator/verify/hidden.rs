@@ -7,7 +7,7 @@
 //! only; a side whose growth lines the photo up clearly better is grown, or both sides
 //! of an axis about the centre. The grown model's edges and its roll are then climbed
 //! in turn on the same correlation; so are a result's that the verdict does not find
-//! where no side grows ([`realigned`]). (The right eye sees a nearer occluder's edge
+//! where no side grows. (The right eye sees a nearer occluder's edge
 //! shifted into that part, so it is not read.)
 
 use nalgebra::Vector3;
@@ -43,8 +43,12 @@ const SIDES: &[(bool, f64)] = GROWTHS.split_at(4).0;
 
 /// `c` with up to two of its sides or axes (`GROWTHS`) grown where the photo's
 /// texture lines up better with the part of the image that `c` covers (`box_px`: the
-/// photo box, for sizes).
-pub fn uncovered(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
+/// photo box, for sizes), then its edges and roll climbed on that alignment
+/// (`lined_up`). With `line_up_anyway` (a result the verdict does not find) they are
+/// climbed where no side grows too: under blur, a colour cast and a bar, a search can
+/// end a few per cent long or short along one axis about the card's centre, where no
+/// side's growth gains enough to be taken.
+pub fn uncovered(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2], line_up_anyway: bool) -> PoseSize {
     let mut best = *c;
     let mut at = alignment(two, c, c, box_px);
     let mut grown = [false; GROWTHS.len()];
@@ -68,19 +72,10 @@ pub fn uncovered(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
         at = a;
         grown[k] = true;
     }
-    if grown.contains(&true) {
+    if grown.contains(&true) || line_up_anyway {
         best = lined_up(two, c, (best, at), box_px);
     }
     best
-}
-
-/// `c` with its edges and roll climbed in turn while the photo's texture lines up
-/// better with the part of the image that `c` covers, as after a growth in
-/// [`uncovered`], but from `c` itself. Under blur, a colour cast and a bar, a search
-/// can end a few per cent long or short along one axis about the card's centre, where
-/// no side's growth gains enough to be taken.
-pub fn realigned(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
-    lined_up(two, c, (*c, alignment(two, c, c, box_px)), box_px)
 }
 
 /// `q` (lining the photo up with `shown`'s part of the image to `at`) with its edges and
