@@ -67,6 +67,12 @@ impl Drawn {
         PoseSize::from_pose(&self.hand_from_model, self.size_mm, self.model.l_p, self.model.b_p)
     }
 
+    /// The one-shot estimate with the scene's configuration and seed.
+    fn estimated(&self) -> photopose::estimator::ga::Outcome {
+        let (generations, seed) = (self.config.ga.generations, self.config.ga.seed);
+        oneshot::run(&self.model, &self.images, &self.config, generations, seed, &mut |_| {}).expect("calibrated")
+    }
+
     /// The frame prepared for the search with the scene's configuration.
     fn prepared(&self) -> oneshot::Prepared {
         oneshot::Prepared::new(&self.model, &self.images, &self.config).expect("calibrated")
@@ -304,15 +310,7 @@ fn generalisation_scenes_are_estimated_or_flagged() {
     let n = drawn().filter(|&i| chosen(i)).count();
     for i in drawn().filter(|&i| chosen(i)) {
         let d = draw(i);
-        let out = oneshot::run(
-            &d.model,
-            &d.images,
-            &d.config,
-            d.config.ga.generations,
-            d.config.ga.seed,
-            &mut |_| {},
-        )
-        .unwrap();
+        let out = d.estimated();
         let [pos, size, rot] = errors(&d, &out.best);
         let truth = d.truth();
         let score = |p: &PoseSize| oneshot::score_at(&d.model, &d.images, &d.config, p).unwrap().score;
@@ -593,6 +591,26 @@ fn a_model_a_few_per_cent_off_in_size_is_realigned() {
             assert!(after[0] < 2.0 && after[1] < 0.03 && after[2] < 1.5, "{what}");
             println!("{what}");
         }
+    }
+}
+
+/// The rocket card on its smooth sky, under a bar, blurred and recoloured (scenes 229 and
+/// 318 of the random set's sixth and eighth draws): the photo's texture barely tells
+/// where its sides are, and the search's result ended 5.4 % and 6.6 % off in size when
+/// the uncovering's climbs read that texture alone. With the card's outline (the
+/// brightness step across its sides) they end within 10 mm, 5 % and 5°.
+#[test]
+fn the_outline_sizes_a_card_whose_photo_is_smooth_near_its_border() {
+    for i in [229, 318] {
+        let d = draw(i);
+        let out = d.estimated();
+        let [pos, size, rot] = errors(&d, &out.best);
+        println!("scene {i}: {pos:.1} mm, {:.1} %, {rot:.1}°", size * 100.0);
+        assert!(
+            pos <= 10.0 && size <= 0.05 && rot <= 5.0,
+            "scene {i}: {pos:.1} mm, {:.1} %, {rot:.1}°",
+            size * 100.0
+        );
     }
 }
 

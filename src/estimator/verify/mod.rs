@@ -3,6 +3,7 @@
 //! the verdict (found or not, with a confidence) reported with every estimate.
 
 pub mod hidden;
+pub mod outline;
 pub mod plane;
 pub mod texture;
 

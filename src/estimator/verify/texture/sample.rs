@@ -61,6 +61,21 @@ impl Brightness {
         }
         portable(self, us, vs, out);
     }
+
+    /// The bilinear brightness at pixel `(u, v)`; `None` where its four pixels are not
+    /// all in the eye.
+    pub fn brightness_at(&self, u: f32, v: f32) -> Option<f32> {
+        let (u, v) = (u - self.origin.0, v - self.origin.1);
+        let (x0, y0) = (u as i64, v as i64);
+        let (w, h) = (self.width as i64, self.height as i64);
+        if u < 0.0 || v < 0.0 || x0 >= w - 1 || y0 >= h - 1 {
+            return None;
+        }
+        let k = (y0 * w + x0) as usize;
+        let p = &self.px;
+        let (a, b, c, d) = (p[k], p[k + 1], p[k + self.width], p[k + self.width + 1]);
+        Some(lerp2(a[0], b[0], c[0], d[0], u - x0 as f32, v - y0 as f32))
+    }
 }
 
 /// [`Brightness::sample_batch`] one point at a time, on an eye of at least 2 × 2 pixels:
