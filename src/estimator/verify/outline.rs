@@ -4,9 +4,10 @@
 //! the brightness steps across each of its sides, at the same card points in both eyes.
 //! [`contrast`] reads that step along the sides of a candidate.
 
-use nalgebra::{Isometry3, Point3};
+use nalgebra::{Isometry3, Point2, Point3};
 
 use super::plane::TwoEyes;
+use super::texture::Brightness;
 use crate::estimator::pose::PoseSize;
 
 /// Points read along each side, over its middle [`SPAN`].
@@ -44,19 +45,20 @@ fn side_step(two: &TwoEyes, left_from_model: &Isometry3<f64>, (length, edge, acr
     let (mut sum, mut n) = (0.0, 0);
     for i in 0..ALONG {
         let s = (-SPAN / 2.0 + SPAN * i as f64 / (ALONG - 1) as f64) * across;
-        let step = |eye: usize| {
-            let at = |x: f64| {
-                let p = left_from_model
-                    * if length {
-                        Point3::new(x, s, 0.0)
-                    } else {
-                        Point3::new(s, x, 0.0)
-                    };
-                brightness(two, eye, &p)
-            };
-            Some((at(edge - d)? - at(edge + d)?).abs() as f64)
+        let on_card = |x: f64| {
+            if length {
+                Point3::new(x, s, 0.0)
+            } else {
+                Point3::new(s, x, 0.0)
+            }
         };
-        if let (Some(left), Some(right)) = (step(0), step(1)) {
+        let [inside, outside] = [edge - d, edge + d].map(|x| two.rig.project_both(&(left_from_model * on_card(x))));
+        let step = |eye: &Brightness, a: Option<Point2<f64>>, b: Option<Point2<f64>>| {
+            let at = |p: Point2<f64>| eye.brightness_at(p.x as f32, p.y as f32);
+            Some((at(a?)? - at(b?)?).abs() as f64)
+        };
+        let left = step(two.eyes[0], inside.0, outside.0);
+        if let (Some(left), Some(right)) = (left, step(two.eyes[1], inside.1, outside.1)) {
             sum += left.min(right);
             n += 1;
         }
@@ -68,21 +70,11 @@ fn side_step(two: &TwoEyes, left_from_model: &Isometry3<f64>, (length, edge, acr
     }
 }
 
-/// Eye `eye`'s brightness (0 left, 1 right) where it sees the left-camera point `p`.
-fn brightness(two: &TwoEyes, eye: usize, p: &Point3<f64>) -> Option<f32> {
-    let px = match eye {
-        0 => two.rig.left.project(p),
-        _ => two.rig.right.project(&(two.rig.right_from_left * p)),
-    };
-    px.and_then(|q| two.eyes[eye].brightness_at(q.x as f32, q.y as f32))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::camera::{Intrinsics, StereoRig};
     use crate::estimator::fitness::PointSet;
-    use crate::estimator::verify::texture::Brightness;
     use image::{Rgb, RgbImage};
     use nalgebra::Vector3;
 
