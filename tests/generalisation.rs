@@ -285,6 +285,11 @@ fn chosen(i: u64) -> bool {
     std::env::var("GEN_SCENES").map_or(true, |l| l.split(',').any(|s| s.trim() == i.to_string()))
 }
 
+/// Whether an estimate's [`errors`] lie within 10 mm, 5 % and 5°.
+fn within_bounds([pos, size, rot]: [f64; 3]) -> bool {
+    pos <= 10.0 && size <= 0.05 && rot <= 5.0
+}
+
 /// Errors of an estimate: position mm, worst relative size, rotation degrees.
 fn errors(d: &Drawn, best: &PoseSize) -> [f64; 3] {
     let size = best.size_mm(d.model.l_p, d.model.b_p);
@@ -317,7 +322,7 @@ fn generalisation_scenes_are_estimated_or_flagged() {
         let (at_result, at_truth) = (score(&out.best), score(&truth));
         outranks += (at_truth > at_result) as usize;
         let v = &out.verdict;
-        let good = pos <= 10.0 && size <= 0.05 && rot <= 5.0;
+        let good = within_bounds([pos, size, rot]);
         let far = pos > 20.0 || rot > 10.0;
         let set = &mut by_noise[(d.noise > 0.0) as usize];
         set[0] += good as usize;
@@ -602,15 +607,7 @@ fn a_model_a_few_per_cent_off_in_size_is_realigned() {
 #[test]
 fn the_outline_sizes_a_card_whose_photo_is_smooth_near_its_border() {
     for i in [229, 318] {
-        let d = draw(i);
-        let out = d.estimated();
-        let [pos, size, rot] = errors(&d, &out.best);
-        println!("scene {i}: {pos:.1} mm, {:.1} %, {rot:.1}°", size * 100.0);
-        assert!(
-            pos <= 10.0 && size <= 0.05 && rot <= 5.0,
-            "scene {i}: {pos:.1} mm, {:.1} %, {rot:.1}°",
-            size * 100.0
-        );
+        assert_estimated_within_bounds(i);
     }
 }
 
@@ -622,12 +619,18 @@ fn the_outline_sizes_a_card_whose_photo_is_smooth_near_its_border() {
 /// estimate lands within 10 mm, 5 % and 5°.
 #[test]
 fn an_axis_short_about_its_centre_is_stretched_back() {
-    let d = draw(48);
-    let out = d.estimated();
-    let [pos, size, rot] = errors(&d, &out.best);
-    let what = format!("{pos:.1} mm, {:.1} %, {rot:.1}°", size * 100.0);
-    println!("scene 48: {what}");
-    assert!(pos <= 10.0 && size <= 0.05 && rot <= 5.0, "scene 48: {what}");
+    assert_estimated_within_bounds(48);
+}
+
+/// Estimates scene `i` with its configuration and asserts the result lies within 10 mm,
+/// 5 % and 5° of the truth.
+fn assert_estimated_within_bounds(i: u64) {
+    let d = draw(i);
+    let errors = errors(&d, &d.estimated().best);
+    let [pos, size, rot] = errors;
+    let what = format!("scene {i}: {pos:.1} mm, {:.1} %, {rot:.1}°", size * 100.0);
+    println!("{what}");
+    assert!(within_bounds(errors), "{what}");
 }
 
 /// A search can end on a local peak of the full resolution that the half resolution's
