@@ -109,7 +109,8 @@ fn tracks_a_card_moving_at_150_mm_per_s() {
         let err = (est.best.position - scene.card.hand_from_model.translation.vector).norm();
         if i == 0 {
             assert!(err < 10.0, "acquisition ends {err:.1} mm off");
-            assert_eq!(est.generations as usize, r.config.tracking.acquire_generations);
+            // The verdict finds the quick pass's result: no search (0 generations).
+            assert_eq!(est.generations, 0, "the acquisition's quick pass taken");
         } else if i == 1 {
             // The acquired model is relocated on the first frame after it.
             assert_eq!(est.generations as usize, RELOCATE_GENERATIONS);

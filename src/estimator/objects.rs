@@ -58,7 +58,7 @@ impl OwnedFrame {
 }
 
 /// Bytes of frames a backlog holds at most: 256 MiB, about 1.5 s of HD RGB8 at 30 fps
-/// (46 frames), 0.8 s at 60 fps, and longer for YUYV. An acquisition takes 0.5–0.8 s.
+/// (46 frames), 0.8 s at 60 fps, and longer for YUYV. An acquisition takes 0.3–0.8 s.
 pub const BACKLOG_BYTES: usize = 256 << 20;
 
 /// The frames that arrived while an object was searched on a whole frame, oldest first,

@@ -319,7 +319,7 @@ pub fn search_observed(
         if retry.tilted {
             problem.scan_tilt = RETRY_SCAN_TILT_DEG.to_radians();
         }
-        let mut outcome = ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress);
+        let mut outcome = ga::robust::run(&problem, &config.ga, &config.robust, generations, seed, progress, None);
         outcome.verdict = prepared.verdict(&outcome.best);
         if !outcome.verdict.found {
             prepared.repolish(&prepared.problem(config), &mut outcome, seed);

@@ -11,6 +11,7 @@ pub mod live;
 pub mod observe;
 pub mod paper;
 pub mod polish;
+pub mod quick;
 pub mod relocate;
 pub mod robust;
 pub mod scan;

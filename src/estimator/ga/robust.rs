@@ -9,6 +9,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::time::Instant;
 
+use super::scan::Scanned;
 use super::{best_index, rank, snapshot_generations, Bounds, Genes, Outcome, Problem, Snapshot, Ties, GENES};
 use crate::estimator::fitness::Fitness;
 use crate::estimator::pose::PoseSize;
@@ -174,7 +175,9 @@ fn schedule(total: usize, share: &[f64]) -> Vec<usize> {
     out
 }
 
-/// Runs the coarse-to-fine GA for `generations` generations, then the refinement.
+/// Runs the coarse-to-fine GA for `generations` generations, then the refinement,
+/// seeded from `scanned` where an acquisition scan was already made on this problem
+/// ([`scan::seeds`](super::scan::seeds) of `ga.population`; `None`: scanned here).
 pub fn run(
     problem: &Problem,
     ga: &GaSettings,
@@ -182,12 +185,13 @@ pub fn run(
     generations: usize,
     seed: u64,
     progress: &mut dyn FnMut(usize),
+    scanned: Option<Scanned>,
 ) -> Outcome {
     let mut rng = StdRng::seed_from_u64(seed);
     let levels = problem.levels.len().min(robust.pyramid_levels);
     let plan = schedule(generations, &robust.level_share[robust.level_share.len() - levels..]);
     let mut search = Search::new(problem, ga, robust, levels, generations);
-    search.seed(&mut rng);
+    search.seed(&mut rng, scanned);
     for (step, &gens) in plan.iter().enumerate() {
         let level = levels - 1 - step;
         let start = Instant::now();
@@ -254,14 +258,14 @@ impl<'p, 'a> Search<'p, 'a> {
         }
     }
 
-    /// The restarts' first populations: the first from the exhaustive scan (topped up
-    /// from the view prior if the scan found fewer placements), the others from the
-    /// view prior.
-    fn seed(&mut self, rng: &mut impl Rng) {
+    /// The restarts' first populations: the first from the exhaustive scan (`scanned`,
+    /// or made here; topped up from the view prior if it found fewer placements), the
+    /// others from the view prior.
+    fn seed(&mut self, rng: &mut impl Rng, scanned: Option<Scanned>) {
         let (problem, n) = (self.problem, self.ga.population);
         let start = Instant::now();
         let mut scanned = if self.levels > 1 {
-            let scan = super::scan::seeds(problem, n);
+            let scan = scanned.unwrap_or_else(|| super::scan::seeds(problem, n));
             self.hypotheses = super::polish::distinct(problem, &scan.regions, HYPOTHESES, 40.0, HYPOTHESES / 4);
             Some(scan.seeds).filter(|s| !s.is_empty())
         } else {

@@ -140,6 +140,19 @@ pub enum Plan {
     Track,
 }
 
+/// How a whole-frame step is judged ([`Tracker::step_whole`]).
+#[derive(Clone, Copy)]
+pub struct Judges<'a> {
+    /// The `F_L + F_R` that tracking frames would give the best genes (they read fewer
+    /// points, which for a finely textured photo scores lower than the whole model):
+    /// the status is judged on it, and the tracking frames that follow compare theirs
+    /// with it.
+    pub tracking_f: &'a dyn Fn(&Genes) -> f64,
+    /// Whether the verdict finds a pose: an acquisition's quick pass ends the
+    /// acquisition where it does.
+    pub found: &'a dyn Fn(&PoseSize) -> bool,
+}
+
 /// A GA population that lives from frame to frame.
 pub struct Tracker {
     settings: TrackingSettings,
@@ -281,22 +294,17 @@ impl Tracker {
         self.step_judged(problem, None)
     }
 
-    /// [`Tracker::step`] on a whole frame, whose status is judged on `tracking_f` of the
-    /// best genes: the `F_L + F_R` tracking frames would give it (they read fewer points,
-    /// which for a finely textured photo scores lower than the whole model). The
-    /// tracking frames that follow compare theirs with it.
-    pub fn step_whole(&mut self, problem: &Problem, tracking_f: &dyn Fn(&Genes) -> f64) -> Estimate {
-        self.step_judged(problem, Some(tracking_f))
+    /// [`Tracker::step`] on a whole frame, judged as `judged` says ([`Judges`]).
+    pub fn step_whole(&mut self, problem: &Problem, judged: Judges) -> Estimate {
+        self.step_judged(problem, Some(judged))
     }
 
-    fn step_judged(&mut self, problem: &Problem, tracking_f: Option<&dyn Fn(&Genes) -> f64>) -> Estimate {
+    fn step_judged(&mut self, problem: &Problem, judged: Option<Judges>) -> Estimate {
         self.frames += 1;
         let plan = self.plan();
+        let tracking_f = judged.map(|j| j.tracking_f);
         let generations = match plan {
-            Plan::Acquire => {
-                self.acquire(problem);
-                self.settings.acquire_generations
-            }
+            Plan::Acquire => self.acquire(problem, judged.map(|j| j.found)),
             Plan::Relocate => {
                 self.relocate(problem, self.pop.best().map(|b| b.0));
                 RELOCATE_GENERATIONS
@@ -423,18 +431,32 @@ impl Tracker {
         }
     }
 
-    /// One-shot robust search, then a population around its answer.
-    fn acquire(&mut self, problem: &Problem) {
+    /// The acquisition scan and its quick pass ([`quick`](crate::estimator::ga::quick));
+    /// where `found` does not take its result, the one-shot robust search from the same
+    /// scan. Then a population around the answer. Returns the generations run (0: the
+    /// quick pass's result taken).
+    fn acquire(&mut self, problem: &Problem, found: Option<&dyn Fn(&PoseSize) -> bool>) -> usize {
+        use crate::estimator::ga::{quick, robust, scan};
         let seed = self.rng.random();
-        let outcome = crate::estimator::ga::robust::run(
-            problem,
-            &self.ga,
-            &self.robust,
-            self.settings.acquire_generations,
-            seed,
-            &mut |_| {},
+        let scanned = (problem.levels.len() > 1).then(|| scan::seeds(problem, self.ga.population));
+        let start = std::time::Instant::now();
+        let quick = match (&scanned, found) {
+            (Some(s), Some(found)) => quick::quick(problem, s).filter(|(g, _)| found(&problem.bounds.decode(g))),
+            _ => None,
+        };
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        tracing::debug!(
+            "quick pass: {} in {ms:.0} ms",
+            if quick.is_some() { "found" } else { "not found" }
         );
-        let best = problem.bounds.encode(&outcome.best);
+        let (best, generations) = match quick {
+            Some((g, _)) => (g, 0),
+            None => {
+                let generations = self.settings.acquire_generations;
+                let outcome = robust::run(problem, &self.ga, &self.robust, generations, seed, &mut |_| {}, scanned);
+                (problem.bounds.encode(&outcome.best), generations)
+            }
+        };
         let (n, sigma) = (self.settings.population, self.settings.sigma);
         self.pop.seed_around(problem, best, n, sigma, &mut self.rng);
         self.relocating = true;
@@ -443,6 +465,7 @@ impl Tracker {
         self.searching = 0;
         self.last_best = None;
         self.velocity = [0.0; GENES];
+        generations
     }
 
     /// Finds the model at `from` (just acquired, or last tracked) again on this frame

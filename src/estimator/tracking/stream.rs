@@ -5,7 +5,7 @@
 use image::RgbImage;
 use nalgebra::Isometry3;
 
-use super::{Estimate, Plan, TrackState, Tracker};
+use super::{Estimate, Judges, Plan, TrackState, Tracker};
 use crate::camera::calibration::CalibrationError;
 use crate::camera::StereoRig;
 use crate::config::Config;
@@ -314,7 +314,12 @@ impl StreamTracker {
                 if plan != Plan::Acquire {
                     problem.bounds = self.bounds;
                 }
-                let mut estimate = self.tracker.step_whole(&problem, &tracking_f);
+                let found = |p: &PoseSize| prepared.verdict(p).found;
+                let judges = Judges {
+                    tracking_f: &tracking_f,
+                    found: &found,
+                };
+                let mut estimate = self.tracker.step_whole(&problem, judges);
                 // The one-shot verdict: a pose it does not call found is not tracked. A
                 // rejected acquisition is searched afresh (after recoveries, once an
                 // object was tracked) unless it shows the photo's pattern
