@@ -166,6 +166,16 @@ fn a_card_whose_tilt_is_not_resolved_is_followed_but_not_tracking() {
         let truth = PoseSize::from_pose(&scene.card.hand_from_model, spec.size_mm, r.model.l_p, r.model.b_p);
         let tilt_px = tilt_disparity_px(&truth, [r.model.l_p, r.model.b_p], &rig, &r.config.left_from_hand);
         let err = (est.best.position - truth.position).norm();
+        if i == 0 {
+            // The acquisition's quick pass ends on the rocket's sky, 125 mm long for
+            // 180, unfound; a size sweep grows it, so the search runs
+            // (`quick::size_settled`). Taken, it was followed at that length and not
+            // `tracking`: the short model's tilt disparity is below the verdict's.
+            assert_eq!(
+                est.generations as usize, r.config.tracking.acquire_generations,
+                "frame 0: the search"
+            );
+        }
         if i > 0 && tilt_px >= 1.4 {
             assert_eq!(
                 est.state,
@@ -215,8 +225,10 @@ fn a_pose_below_the_fitness_floor_is_lost_never_tracking() {
         statuses.push((pose.status, f));
     }
     println!("status and F per frame: {statuses:?}");
+    // Frame 0's acquisition ends at a quick pass the verdict does not find (measured:
+    // `searching`, F 1.26); the relocation on frame 1 is `tracking` (F 1.94).
     assert!(
-        statuses[..3].iter().all(|(s, _)| *s == Status::Tracking as u32),
+        statuses[1..3].iter().all(|(s, _)| *s == Status::Tracking as u32),
         "{statuses:?}"
     );
     // Long before `lost_after_frames` (30) searching frames, the floor already says lost.

@@ -185,6 +185,12 @@ pub struct Tracker {
     recoveries: usize,
     /// The genes of the size (α, k) that tracking frames hold the object at.
     held_size: Option<[f64; 2]>,
+    /// The last acquisition ended at its quick pass although the verdict did not find
+    /// its result (its size settled); the next acquisition runs the search where its
+    /// quick pass is not found either, until a frame is confirmed. Where the verdict
+    /// cannot confirm a right result (a blurred card), the result is followed in doubt
+    /// at once; where it is wrong, the next acquisition starts a search's time sooner.
+    unfound_quick: bool,
 }
 
 impl Tracker {
@@ -209,6 +215,7 @@ impl Tracker {
             anchor: None,
             recoveries: 0,
             held_size: None,
+            unfound_quick: false,
         }
     }
 
@@ -224,6 +231,7 @@ impl Tracker {
     /// search the verdict calls found): the object is recovered from there when lost.
     pub fn confirm(&mut self) {
         self.anchor = self.last_best;
+        self.unfound_quick = false;
         self.recoveries = RECOVERIES;
     }
 
@@ -431,32 +439,42 @@ impl Tracker {
         }
     }
 
-    /// The acquisition scan and its quick pass ([`quick`](crate::estimator::ga::quick));
-    /// where `found` does not take its result, the one-shot robust search from the same
-    /// scan. Then a population around the answer. Returns the generations run (0: the
-    /// quick pass's result taken).
+    /// The acquisition scan and its quick pass ([`quick`](crate::estimator::ga::quick)),
+    /// judged by `found` (the verdict). Its result is taken where `found` takes it, and
+    /// also where its size is settled ([`quick::size_settled`]) and the last acquisition
+    /// did not end at an unfound quick pass ([`Tracker::unfound_quick`]); otherwise (or
+    /// without `found`) the one-shot robust
+    /// search runs from the same scan. Then a population around the answer. Returns the
+    /// generations run (0: the quick pass's result taken).
     fn acquire(&mut self, problem: &Problem, found: Option<&dyn Fn(&PoseSize) -> bool>) -> usize {
         use crate::estimator::ga::{quick, robust, scan};
         let seed = self.rng.random();
         let scanned = (problem.levels.len() > 1).then(|| scan::seeds(problem, self.ga.population));
         let start = std::time::Instant::now();
         let quick = match (&scanned, found) {
-            (Some(s), Some(found)) => quick::quick(problem, s).filter(|(g, _)| found(&problem.bounds.decode(g))),
+            (Some(s), Some(found)) => quick::quick(problem, s).map(|(g, _)| {
+                let ok = found(&problem.bounds.decode(&g));
+                (g, ok, ok || quick::size_settled(problem, &g))
+            }),
             _ => None,
         };
         let ms = start.elapsed().as_secs_f64() * 1e3;
-        tracing::debug!(
-            "quick pass: {} in {ms:.0} ms",
-            if quick.is_some() { "found" } else { "not found" }
-        );
+        let said = match quick {
+            Some((_, true, _)) => "found",
+            Some((_, false, true)) => "not found, its size settled",
+            _ => "not found",
+        };
+        tracing::debug!("quick pass: {said} in {ms:.0} ms");
         let (best, generations) = match quick {
-            Some((g, _)) => (g, 0),
-            None => {
+            Some((g, true, _)) => (g, 0),
+            Some((g, false, true)) if !self.unfound_quick => (g, 0),
+            _ => {
                 let generations = self.settings.acquire_generations;
                 let outcome = robust::run(problem, &self.ga, &self.robust, generations, seed, &mut |_| {}, scanned);
                 (problem.bounds.encode(&outcome.best), generations)
             }
         };
+        self.unfound_quick = quick.is_some_and(|q| !q.1) && generations == 0;
         let (n, sigma) = (self.settings.population, self.settings.sigma);
         self.pop.seed_around(problem, best, n, sigma, &mut self.rng);
         self.relocating = true;
