@@ -131,12 +131,11 @@ pub fn play(take: &Scenario, timing: Timing) -> Played {
 }
 
 /// An acquisition that its quick pass ends (the whole-frame step's generations 0, the
-/// verdict finding its result or not), and
-/// one that goes on to the search, as shares of the timing's acquisition. Measured in
-/// the tracker on 2 cores: the frame's preparation and scan 140–250 ms, the quick pass
-/// 33–34 ms, the search after it about 300 ms; on the first frames of the 49 takes and
-/// crossed plays the quick pass took 45–47 % of the search's time, the scan counted in
-/// both.
+/// verdict finding its result or not), and one that goes on to the search, as shares
+/// of the timing's acquisition. Measured in the tracker on 2 cores: the frame's
+/// preparation and scan 140–250 ms, the quick pass 33–34 ms, the search after it about
+/// 300 ms; on the first frames of the 49 takes and crossed plays the quick pass took
+/// 45–47 % of the search's time, the scan counted in both.
 const QUICK_SHARE: f64 = 0.4;
 const FALLBACK: f64 = 1.08;
 

@@ -443,9 +443,9 @@ impl Tracker {
     /// judged by `found` (the verdict). Its result is taken where `found` takes it, and
     /// also where its size is settled ([`quick::size_settled`]) and the last acquisition
     /// did not end at an unfound quick pass ([`Tracker::unfound_quick`]); otherwise (or
-    /// without `found`) the one-shot robust
-    /// search runs from the same scan. Then a population around the answer. Returns the
-    /// generations run (0: the quick pass's result taken).
+    /// without `found`) the one-shot robust search runs from the same scan. Then a
+    /// population around the answer. Returns the generations run (0: the quick pass's
+    /// result taken).
     fn acquire(&mut self, problem: &Problem, found: Option<&dyn Fn(&PoseSize) -> bool>) -> usize {
         use crate::estimator::ga::{quick, robust, scan};
         let seed = self.rng.random();
