@@ -22,7 +22,7 @@
 mod play;
 
 use photopose::capture::scenario::film::Film;
-use photopose::capture::scenario::Scenario;
+use photopose::capture::scenario::{Scenario, GOOD};
 use photopose::estimator::tracking::{Estimate, StreamTracker, TrackState};
 
 use play::play;
@@ -293,8 +293,8 @@ fn an_acquisition_ends_at_its_quick_pass_unless_the_last_one_did_unfound() {
     );
 }
 
-/// `take`'s first frame: acquired by its quick pass (0 generations) within 20 mm, 10 %
-/// and 10°, with status `state`; the tracker after it.
+/// `take`'s first frame: acquired by its quick pass (0 generations) within the takes'
+/// [`GOOD`] bounds (20 mm, 10 %, 10°), with status `state`; the tracker after it.
 fn first_frame(name: &str, state: TrackState) -> StreamTracker {
     let (mut take, mut tracker) = Take::new(name);
     let ([mm, size, deg], est) = take.estimate(&mut tracker, 0);
@@ -305,13 +305,11 @@ fn first_frame(name: &str, state: TrackState) -> StreamTracker {
         est.state
     );
     assert_eq!((est.generations, est.state), (0, state), "{name}");
-    assert!(within(mm, size, deg), "{name}: {mm:.1} mm, {deg:.1}° off");
+    assert!(
+        [mm, size, deg].iter().zip(GOOD).all(|(e, g)| *e <= g),
+        "{name}: {mm:.1} mm, {deg:.1}° off"
+    );
     tracker
-}
-
-/// Within 20 mm, 10 % in size and 10°: a good `tracking` pose, as the takes count it.
-fn within(mm: f64, size: f64, deg: f64) -> bool {
-    mm <= 20.0 && size <= 0.1 && deg <= 10.0
 }
 
 /// The estimator process's catch-up, on `sweep` (600 mm/s, blur): a card acquired on
