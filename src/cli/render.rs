@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::capture::scenario::film;
+use crate::capture::scenario::film::{self, InView};
 use crate::capture::scenario::{Scenario, SCORED_SHARE};
 use crate::render::{self, SceneSpec};
 
@@ -77,21 +77,22 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
 fn write_scenario(name: &str, dir: &Path, config: &crate::config::Config) -> anyhow::Result<()> {
     let scenario = Scenario::named(name).map_err(anyhow::Error::msg)?;
     let visible = record_scenario(&scenario, dir, config)?;
-    let in_view = visible.iter().filter(|v| **v >= SCORED_SHARE).count();
+    let count = |seen: &dyn Fn(&InView) -> f64| visible.iter().filter(|v| seen(v) >= SCORED_SHARE).count();
     println!(
-        "wrote {} frames of scenario {name} ({} fps, {} of them with ≥ 60 % of the card in view) to {}; play it with `photopose capture --source replay:{}`",
+        "wrote {} frames of scenario {name} ({} fps, {} of them with ≥ 60 % of the card in view, {} in both eyes' view) to {}; play it with `photopose capture --source replay:{}`",
         visible.len(),
         scenario.fps,
-        in_view,
+        count(&|v| v.left),
+        count(&|v| v.both_eyes),
         dir.display(),
         dir.display()
     );
     Ok(())
 }
 
-/// Renders `scenario` into `dir` with a progress bar: each frame's share of the card in
+/// Renders `scenario` into `dir` with a progress bar: each frame's shares of the card in
 /// view.
-pub fn record_scenario(scenario: &Scenario, dir: &Path, config: &crate::config::Config) -> anyhow::Result<Vec<f64>> {
+pub fn record_scenario(scenario: &Scenario, dir: &Path, config: &crate::config::Config) -> anyhow::Result<Vec<InView>> {
     let bar = super::progress_bar(scenario.frames() as u64, &format!("rendering {}", scenario.name));
     let visible = film::record(scenario, Path::new("."), config, dir, |n| bar.set_position(n as u64));
     bar.finish_and_clear();

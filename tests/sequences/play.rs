@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use photopose::camera::StereoRig;
 use photopose::capture::scenario::film::Film;
-use photopose::capture::scenario::{Judged, Scenario};
+use photopose::capture::scenario::{Judged, Return, Scenario};
 use photopose::config::Config;
 use photopose::estimator::tracking::{Estimate, StreamTracker, TrackState};
 use photopose::vision::lookup::SbsBytes;
@@ -89,11 +89,13 @@ pub fn play(take: &Scenario, timing: Timing) -> Played {
             busy_until += CATCH_UP_S * catch_up(&mut tracker, &mut film, &backlog, take.yuyv) as f64;
             backlog.clear();
         }
+        let in_view = film.in_view(i);
         let mut outcome = FrameOutcome {
             t,
             state: None,
             judged: Judged {
-                visible: film.visible(i),
+                visible: in_view.left,
+                both_eyes: in_view.both_eyes,
                 tracking: false,
                 errors: [f64::NAN; 3],
             },
@@ -198,8 +200,8 @@ impl Played {
     }
 
     /// For each return into view (out of view, then scored again), the seconds until the
-    /// first good pose (infinite: never).
-    pub fn reacquisitions(&self) -> Vec<f64> {
+    /// first good pose (infinite: never), from when the left eye and both eyes see it.
+    pub fn reacquisitions(&self) -> Vec<Return> {
         let frames: Vec<(f64, Judged)> = self.frames.iter().map(|f| (f.t, f.judged)).collect();
         photopose::capture::scenario::reacquisitions(&frames)
     }
@@ -215,7 +217,7 @@ impl Played {
     /// The seconds back after each return into view, as the tables print them ("–" for
     /// none).
     pub fn back(&self) -> String {
-        let back: Vec<String> = self.reacquisitions().iter().map(|s| format!("{s:.2} s")).collect();
+        let back: Vec<String> = self.reacquisitions().iter().map(Return::to_string).collect();
         if back.is_empty() {
             "–".to_string()
         } else {
@@ -296,8 +298,7 @@ impl Takes<'_> {
         let mut s: Vec<f64> = self.0.iter().map(Played::success).collect();
         s.sort_by(f64::total_cmp);
         let pct = |k: usize| s.get(k).map_or(f64::NAN, |v| 100.0 * v);
-        let back = (self.0.iter().flat_map(Played::reacquisitions))
-            .fold(None, |m: Option<f64>, b| Some(m.map_or(b, |m| m.max(b))));
+        let back = (self.0.iter().flat_map(Played::reacquisitions)).max_by(|a, b| a.left.total_cmp(&b.left));
         format!(
             "| {} | {:.0} %, {:.0} %, {:.0} % | {} | {} | {} |",
             self.0.first().map_or("", |p| p.name),
@@ -306,14 +307,16 @@ impl Takes<'_> {
             pct(s.len().saturating_sub(1)),
             self.0.iter().map(Played::wrong).sum::<usize>(),
             self.0.iter().map(Played::tracking_out_of_view).sum::<usize>(),
-            back.map_or("–".to_string(), |b| format!("{b:.2} s"))
+            back.map_or("–".to_string(), |b| b.to_string())
         )
     }
 
     /// Whether the take reaches the targets at every timing.
     fn reached(&self) -> bool {
         self.0.iter().all(|p| {
-            p.success() >= TARGET_SUCCESS && p.wrong() == 0 && p.reacquisitions().iter().all(|s| *s <= TARGET_BACK_S)
+            p.success() >= TARGET_SUCCESS
+                && p.wrong() == 0
+                && p.reacquisitions().iter().all(|r| r.left <= TARGET_BACK_S)
         })
     }
 }

@@ -132,6 +132,11 @@ impl Film {
 
     /// Share of the card the left camera sees in frame `i`.
     pub fn visible(&self, i: usize) -> f64 {
+        self.in_view(i).left
+    }
+
+    /// Shares of the card the left camera and both cameras see in frame `i`.
+    pub fn in_view(&self, i: usize) -> InView {
         let (left_from_model, occluder) = self.staged(self.time(i));
         visible_share(&self.rig, &left_from_model, self.scene.card.size_mm, occluder.as_ref())
     }
@@ -140,8 +145,10 @@ impl Film {
     pub fn judge(&self, i: usize, hand_from_model: &Isometry3<f64>, size_mm: [f64; 2], tracking: bool) -> Judged {
         let truth = self.truth(i);
         let rel = |k: usize| (size_mm[k] - truth.size_mm[k]).abs() / truth.size_mm[k];
+        let in_view = self.in_view(i);
         Judged {
-            visible: self.visible(i),
+            visible: in_view.left,
+            both_eyes: in_view.both_eyes,
             tracking,
             errors: [
                 (hand_from_model.translation.vector - truth.hand_from_model.translation.vector).norm(),
@@ -200,38 +207,54 @@ fn gaussian(rng: &mut StdRng) -> f32 {
     (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
 }
 
-/// Share of the card's area (a 20 × 20 grid of points) that the left camera sees: inside
-/// the image and not behind the occluder.
+/// Shares of the card's area (a 20 × 20 grid of points) that the left camera sees, and
+/// that both cameras see: inside the image and not behind the occluder.
 pub fn visible_share(
     rig: &StereoRig,
     left_from_model: &Isometry3<f64>,
     size_mm: [f64; 2],
     occluder: Option<&Occluder>,
-) -> f64 {
+) -> InView {
     const N: usize = 20;
     let (w, h) = (rig.width as f64, rig.height as f64);
-    let seen = (0..N * N)
-        .map(|k| {
-            let (i, j) = (k % N, k / N);
-            let u = (i as f64 + 0.5) / N as f64 - 0.5;
-            let v = (j as f64 + 0.5) / N as f64 - 0.5;
-            left_from_model * Point3::new(u * size_mm[0], v * size_mm[1], 0.0)
-        })
-        .filter(|p| {
-            let inside = rig
-                .left
-                .project(p)
-                .is_some_and(|q| (0.0..w).contains(&q.x) && (0.0..h).contains(&q.y));
-            inside && !occluder.is_some_and(|o| hides(o, p))
-        })
-        .count();
-    seen as f64 / (N * N) as f64
+    let in_image =
+        |q: Option<nalgebra::Point2<f64>>| q.is_some_and(|q| (0.0..w).contains(&q.x) && (0.0..h).contains(&q.y));
+    let right_centre = rig.right_from_left.inverse() * Point3::origin();
+    let (mut left, mut both) = (0, 0);
+    for k in 0..N * N {
+        let (i, j) = (k % N, k / N);
+        let u = (i as f64 + 0.5) / N as f64 - 0.5;
+        let v = (j as f64 + 0.5) / N as f64 - 0.5;
+        let p = left_from_model * Point3::new(u * size_mm[0], v * size_mm[1], 0.0);
+        let hidden_from = |eye: &Point3<f64>| occluder.is_some_and(|o| hides(o, eye, &p));
+        if in_image(rig.left.project(&p)) && !hidden_from(&Point3::origin()) {
+            left += 1;
+            if in_image(rig.right.project(&(rig.right_from_left * p))) && !hidden_from(&right_centre) {
+                both += 1;
+            }
+        }
+    }
+    let share = |n: usize| n as f64 / (N * N) as f64;
+    InView {
+        left: share(left),
+        both_eyes: share(both),
+    }
 }
 
-/// Whether `occluder` lies on the line of sight from the left camera to `p`.
-fn hides(occluder: &Occluder, p: &Point3<f64>) -> bool {
+/// Shares of the card in view on a frame (see [`visible_share`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InView {
+    /// The left camera's share.
+    pub left: f64,
+    /// Both cameras' share.
+    pub both_eyes: f64,
+}
+
+/// Whether `occluder` lies on the line of sight from the camera centre `eye` (left
+/// camera's frame) to `p`.
+fn hides(occluder: &Occluder, eye: &Point3<f64>, p: &Point3<f64>) -> bool {
     let to_local = occluder.left_from_occluder.inverse();
-    let (o, q) = (to_local * Point3::origin(), to_local * p);
+    let (o, q) = (to_local * eye, to_local * p);
     if o.z.signum() == q.z.signum() {
         return false;
     }
@@ -242,7 +265,7 @@ fn hides(occluder: &Occluder, p: &Point3<f64>) -> bool {
 
 /// Writes `scenario` into `dir` as a recorded sequence (frame ids from 0, capture times
 /// at the take's rate, the truth in the hand frame), rendering on every core;
-/// `progress` is told each frame written. Returns each frame's share of the card in
+/// `progress` is told each frame written. Returns each frame's shares of the card in
 /// view.
 pub fn record(
     scenario: &Scenario,
@@ -250,7 +273,7 @@ pub fn record(
     config: &Config,
     dir: &Path,
     progress: impl Fn(usize),
-) -> Result<Vec<f64>, String> {
+) -> Result<Vec<InView>, String> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let mut films = (0..threads)
         .map(|_| Film::new(scenario, root, config))
@@ -275,7 +298,7 @@ pub fn record(
             let time_ns = (film.time(i) * 1e9).round() as u64;
             let info = FrameInfo::single(time_ns, Some(film.truth(i)));
             recorder.record_all(i as u64, &info, &bytes).map_err(failed)?;
-            visible.push(film.visible(i));
+            visible.push(film.in_view(i));
             progress(i + 1);
         }
     }
@@ -314,7 +337,10 @@ mod tests {
             let bytes = std::fs::metadata(dir.join(&f.file)).unwrap().len();
             assert_eq!(bytes, 2 * 1280 * 720 * 2, "{}: raw YUYV", f.file);
         }
-        assert_eq!(visible, vec![1.0; 3]);
+        assert!(
+            visible.iter().all(|v| v.left == 1.0 && v.both_eyes == 1.0),
+            "{visible:?}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
@@ -326,6 +352,12 @@ mod tests {
         assert_eq!(at(0.0), 1.0);
         assert_eq!(at(2.5), 0.0, "out of view from 2 to 3.5 s");
         assert_eq!(at(5.5), 1.0, "back in view");
+        // Coming in at the left edge, the card is in the left camera's view about 0.5 s
+        // before it is in the right camera's (0.12 m baseline at 0.26 m/s).
+        let both = |t: f64| film.in_view((t * take.fps).round() as usize);
+        assert!(both(3.9).left == 1.0 && both(3.9).both_eyes < 0.05, "{:?}", both(3.9));
+        assert!((0.5..0.7).contains(&both(4.15).both_eyes), "{:?}", both(4.15));
+        assert_eq!(both(4.4).both_eyes, 1.0);
     }
 
     #[test]

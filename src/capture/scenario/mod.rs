@@ -97,6 +97,9 @@ pub const OUT_OF_VIEW: f64 = 0.1;
 pub struct Judged {
     /// Share of the card the left camera sees.
     pub visible: f64,
+    /// Share of it both cameras see: a stereo pose and size needs both. A card coming
+    /// in at the left edge is seen by the left camera first (for 0.5 s in `leave`).
+    pub both_eyes: f64,
     /// Whether the pose said `tracking`.
     pub tracking: bool,
     /// Position (mm), worst relative size and rotation (degrees) errors.
@@ -125,10 +128,33 @@ impl Judged {
     }
 }
 
-/// For each return into view in `frames` (each frame's time in seconds and its judged
-/// pose, in order: the card out of view, then in view enough to be scored), the seconds
-/// from that frame to the first good pose (infinite: none came).
-pub fn reacquisitions(frames: &[(f64, Judged)]) -> Vec<f64> {
+/// A return of the card into view: the seconds to the first good pose (infinite: none
+/// came) from the first frame on which the left camera sees enough of it to be scored
+/// ([`SCORED_SHARE`]), and from the first on which both cameras do (0 where the pose came
+/// first).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Return {
+    /// Seconds from the left camera's view.
+    pub left: f64,
+    /// Seconds from both cameras' view.
+    pub both_eyes: f64,
+}
+
+impl std::fmt::Display for Return {
+    /// "0.93 s (0.48 s after both eyes see it)", "0.20 s" where both eyes saw it as
+    /// soon as the left one, or "never".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match (self.left, self.both_eyes) {
+            (left, _) if left.is_infinite() => write!(f, "never"),
+            (left, both) if both == left => write!(f, "{left:.2} s"),
+            (left, both) => write!(f, "{left:.2} s ({both:.2} s after both eyes see it)"),
+        }
+    }
+}
+
+/// Each return into view in `frames` (each frame's time in seconds and its judged pose,
+/// in order: the card out of view, then in view enough to be scored).
+pub fn reacquisitions(frames: &[(f64, Judged)]) -> Vec<Return> {
     let mut out = Vec::new();
     let mut away = false;
     for (i, (t, judged)) in frames.iter().enumerate() {
@@ -136,11 +162,16 @@ pub fn reacquisitions(frames: &[(f64, Judged)]) -> Vec<f64> {
             away = true;
         } else if away && judged.scored() {
             away = false;
-            let back = frames[i..]
+            let rest = &frames[i..];
+            let good = rest.iter().find(|(_, g)| g.good()).map_or(f64::INFINITY, |(s, _)| *s);
+            let both = rest
                 .iter()
-                .find(|(_, g)| g.good())
-                .map_or(f64::INFINITY, |(good, _)| good - t);
-            out.push(back);
+                .find(|(_, g)| g.both_eyes >= SCORED_SHARE)
+                .map_or(good, |(s, _)| *s);
+            out.push(Return {
+                left: good - t,
+                both_eyes: (good - both).max(0.0),
+            });
         }
     }
     out
@@ -152,20 +183,21 @@ mod tests {
 
     #[test]
     fn a_return_into_view_counts_the_time_to_the_first_good_pose() {
-        let frame = |visible: f64, tracking: bool, mm: f64| Judged {
+        let frame = |visible: f64, both_eyes: f64, tracking: bool, mm: f64| Judged {
             visible,
+            both_eyes,
             tracking,
             errors: [mm, 0.0, 0.0],
         };
         let frames: Vec<(f64, Judged)> = [
-            frame(1.0, true, 1.0),
-            frame(0.0, false, 900.0),  // away
-            frame(0.4, false, 600.0),  // coming back: not scored yet
-            frame(0.8, false, 500.0),  // back: scored from here
-            frame(1.0, true, 30.0),    // tracking, but not good
-            frame(1.0, true, 2.0),     // good, 0.2 s after coming back
-            frame(0.05, false, 900.0), // away again
-            frame(1.0, false, 900.0),  // back, and never found
+            frame(1.0, 1.0, true, 1.0),
+            frame(0.0, 0.0, false, 900.0),  // away
+            frame(0.4, 0.0, false, 600.0),  // coming back: not scored yet
+            frame(0.8, 0.3, false, 500.0),  // back: scored from here
+            frame(1.0, 0.6, true, 30.0),    // tracking, but not good; both eyes see it
+            frame(1.0, 0.8, true, 2.0),     // good, 0.2 s after coming back
+            frame(0.05, 0.0, false, 900.0), // away again
+            frame(1.0, 1.0, false, 900.0),  // back, and never found
         ]
         .into_iter()
         .enumerate()
@@ -173,8 +205,16 @@ mod tests {
         .collect();
         let back = reacquisitions(&frames);
         assert_eq!(back.len(), 2);
-        assert!((back[0] - 0.2).abs() < 1e-9, "{back:?}");
-        assert!(back[1].is_infinite());
+        assert!((back[0].left - 0.2).abs() < 1e-9, "{back:?}");
+        assert!((back[0].both_eyes - 0.1).abs() < 1e-9, "{back:?}");
+        assert_eq!(back[0].to_string(), "0.20 s (0.10 s after both eyes see it)");
+        assert!(back[1].left.is_infinite());
+        assert_eq!(back[1].to_string(), "never");
+        let at_once = Return {
+            left: 0.3,
+            both_eyes: 0.3,
+        };
+        assert_eq!(at_once.to_string(), "0.30 s");
     }
 
     #[test]
@@ -190,6 +230,7 @@ mod tests {
     fn a_pose_is_judged_by_the_bounds_of_the_held_out_sequences() {
         let judged = |visible, tracking, errors| Judged {
             visible,
+            both_eyes: visible,
             tracking,
             errors,
         };

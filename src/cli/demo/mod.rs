@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::capture::scenario::film::Film;
+use crate::capture::scenario::film::{Film, InView};
 use crate::capture::scenario::Scenario;
 use crate::capture::DEFAULT_SCENE;
 use crate::cli::report::plot;
@@ -107,7 +107,7 @@ struct Stage {
     models: Vec<(ObjectName, PathBuf)>,
     capture: Vec<String>,
     title: String,
-    visible: Option<Vec<f64>>,
+    visible: Option<Vec<InView>>,
     scratch: Vec<PathBuf>,
 }
 

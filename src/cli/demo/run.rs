@@ -6,7 +6,8 @@ use std::collections::BTreeMap;
 
 use nalgebra::{Quaternion, UnitQuaternion};
 
-use crate::capture::scenario::{reacquisitions, Judged, GOOD, SCORED_SHARE, WRONG};
+use crate::capture::scenario::film::InView;
+use crate::capture::scenario::{reacquisitions, Judged, Return, GOOD, SCORED_SHARE, WRONG};
 use crate::cli::report::plot::{self, Panel, Series, PALETTE};
 use crate::cli::report::stats::Samples;
 use crate::transport::messages::{PoseMsg, PoseSet, Status};
@@ -18,11 +19,11 @@ type Line = (String, Vec<(f64, f64)>);
 /// frame's share of the card in view.
 pub struct Run {
     tracks: Vec<(String, Record)>,
-    visible: Option<Vec<f64>>,
+    visible: Option<Vec<InView>>,
 }
 
 impl Run {
-    pub fn new(names: &[String], visible: Option<Vec<f64>>) -> Self {
+    pub fn new(names: &[String], visible: Option<Vec<InView>>) -> Self {
         Self {
             tracks: names.iter().map(|n| (n.clone(), Record::default())).collect(),
             visible,
@@ -41,7 +42,8 @@ impl Run {
                 let judged = match poses.get(id) {
                     Some(p) => judge(p, truth, visible),
                     None => Judged {
-                        visible,
+                        visible: visible.left,
+                        both_eyes: visible.both_eyes,
                         tracking: false,
                         errors: [f64::NAN; 3],
                     },
@@ -165,7 +167,7 @@ struct Judgement {
     wrong: usize,
     out_of_view: usize,
     /// For each return of the card into view, the seconds to the first good pose.
-    back: Vec<f64>,
+    back: Vec<Return>,
 }
 
 impl Judgement {
@@ -195,17 +197,7 @@ impl Judgement {
     fn summary(&self) -> String {
         let [mm, size, deg] = GOOD;
         let [wrong_mm, wrong_deg] = WRONG;
-        let back: Vec<String> = self
-            .back
-            .iter()
-            .map(|s| {
-                if s.is_finite() {
-                    format!("{s:.2} s")
-                } else {
-                    "never".into()
-                }
-            })
-            .collect();
+        let back: Vec<String> = self.back.iter().map(|r| r.to_string()).collect();
         let back = if back.is_empty() {
             String::new()
         } else {
@@ -226,11 +218,12 @@ impl Judgement {
 }
 
 /// Judges a pose against the truth of its frame.
-fn judge(p: &PoseMsg, t: &PoseMsg, visible: f64) -> Judged {
+fn judge(p: &PoseMsg, t: &PoseMsg, visible: InView) -> Judged {
     let rotation = |q: [f64; 4]| UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
     let rel = |k: usize| (p.size_mm[k] - t.size_mm[k]).abs() / t.size_mm[k];
     Judged {
-        visible,
+        visible: visible.left,
+        both_eyes: visible.both_eyes,
         tracking: p.status == Status::Tracking as u32,
         errors: [
             position_error(p, t),
@@ -401,7 +394,9 @@ mod tests {
     #[test]
     fn a_scenario_run_counts_success_against_the_truth_of_each_frame() {
         let name = ObjectName::from_stem("card");
-        let mut run = Run::new(&["card".into()], Some(vec![1.0, 1.0, 0.5, 0.0]));
+        let seen = |left, both_eyes| InView { left, both_eyes };
+        let visible = vec![seen(1.0, 1.0), seen(1.0, 0.7), seen(0.5, 0.0), seen(0.0, 0.0)];
+        let mut run = Run::new(&["card".into()], Some(visible));
         for id in 0..6 {
             run.truth(&PoseSet::single(&name, pose(id, 0.0, 0.0, 100.0, Status::Tracking)));
         }
@@ -419,7 +414,8 @@ mod tests {
         // Frames 0, 1 and 4 are scored (frame 5 has no pose yet); only frame 0 is good.
         assert_eq!((j.scored, j.good, j.wrong, j.out_of_view), (3, 1, 1, 1));
         // The card came back into view on frame 4, and no good pose followed.
-        assert_eq!(j.back, vec![f64::INFINITY]);
+        assert_eq!(j.back.len(), 1);
+        assert!(j.back[0].left.is_infinite(), "{:?}", j.back);
         assert!(run.status(1.0).ends_with("| success 33 %"), "{}", run.status(1.0));
         assert!(
             run.summary().contains("success: 33.3 % (1 of 3 frames"),
