@@ -13,6 +13,7 @@ use rand::{Rng, SeedableRng};
 use crate::config::Config;
 use crate::estimator::fitness::Fitness;
 use crate::estimator::ga::live::{Breeding, EdgeMoves, LivePopulation};
+use crate::estimator::ga::scan::Scanned;
 use crate::estimator::ga::{compass, relocate, Bounds, Genes, Problem, GENES};
 use crate::estimator::pose::PoseSize;
 use crate::estimator::settings::{GaSettings, RobustSettings, TrackingSettings};
@@ -191,6 +192,17 @@ pub struct Tracker {
     /// cannot confirm a right result (a blurred card), the result is followed in doubt
     /// at once; where it is wrong, the next acquisition starts a search's time sooner.
     unfound_quick: bool,
+}
+
+/// What an acquisition's quick pass came to ([`Tracker::acquire`]).
+enum Quick {
+    /// The verdict finds its result.
+    Found(Genes),
+    /// The verdict does not find its result, whose size is settled, and the last
+    /// acquisition did not end at an unfound quick pass: taken.
+    Settled(Genes),
+    /// Neither (or no quick pass): the search runs.
+    Unfound,
 }
 
 impl Tracker {
@@ -447,34 +459,22 @@ impl Tracker {
     /// population around the answer. Returns the generations run (0: the quick pass's
     /// result taken).
     fn acquire(&mut self, problem: &Problem, found: Option<&dyn Fn(&PoseSize) -> bool>) -> usize {
-        use crate::estimator::ga::{quick, robust, scan};
+        use crate::estimator::ga::{robust, scan};
         let seed = self.rng.random();
         let scanned = (problem.levels.len() > 1).then(|| scan::seeds(problem, self.ga.population));
-        let start = std::time::Instant::now();
         let quick = match (&scanned, found) {
-            (Some(s), Some(found)) => quick::quick(problem, s).map(|(g, _)| {
-                let ok = found(&problem.bounds.decode(&g));
-                (g, ok, ok || quick::size_settled(problem, &g))
-            }),
-            _ => None,
+            (Some(s), Some(found)) => self.quick_pass(problem, s, found),
+            _ => Quick::Unfound,
         };
-        let ms = start.elapsed().as_secs_f64() * 1e3;
-        let said = match quick {
-            Some((_, true, _)) => "found",
-            Some((_, false, true)) => "not found, its size settled",
-            _ => "not found",
-        };
-        tracing::debug!("quick pass: {said} in {ms:.0} ms");
         let (best, generations) = match quick {
-            Some((g, true, _)) => (g, 0),
-            Some((g, false, true)) if !self.unfound_quick => (g, 0),
-            _ => {
+            Quick::Found(g) | Quick::Settled(g) => (g, 0),
+            Quick::Unfound => {
                 let generations = self.settings.acquire_generations;
                 let outcome = robust::run(problem, &self.ga, &self.robust, generations, seed, &mut |_| {}, scanned);
                 (problem.bounds.encode(&outcome.best), generations)
             }
         };
-        self.unfound_quick = quick.is_some_and(|q| !q.1) && generations == 0;
+        self.unfound_quick = matches!(quick, Quick::Settled(_));
         let (n, sigma) = (self.settings.population, self.settings.sigma);
         self.pop.seed_around(problem, best, n, sigma, &mut self.rng);
         self.relocating = true;
@@ -484,6 +484,25 @@ impl Tracker {
         self.last_best = None;
         self.velocity = [0.0; GENES];
         generations
+    }
+
+    /// The quick pass on `scanned`, judged by `found`; its size is checked only where
+    /// its result could be taken unfound (not after an acquisition that was).
+    fn quick_pass(&self, problem: &Problem, scanned: &Scanned, found: &dyn Fn(&PoseSize) -> bool) -> Quick {
+        use crate::estimator::ga::quick;
+        let start = std::time::Instant::now();
+        let judged = match quick::quick(problem, scanned) {
+            Some((g, _)) if found(&problem.bounds.decode(&g)) => Quick::Found(g),
+            Some((g, _)) if !self.unfound_quick && quick::size_settled(problem, &g) => Quick::Settled(g),
+            _ => Quick::Unfound,
+        };
+        let said = match judged {
+            Quick::Found(_) => "found",
+            Quick::Settled(_) => "not found, its size settled",
+            Quick::Unfound => "not found",
+        };
+        tracing::debug!("quick pass: {said} in {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
+        judged
     }
 
     /// Finds the model at `from` (just acquired, or last tracked) again on this frame
