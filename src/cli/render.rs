@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::capture::scenario::film::{self, InView};
-use crate::capture::scenario::{Scenario, SCORED_SHARE};
+use crate::capture::scenario::film;
+use crate::capture::scenario::{InView, Scenario, SCORED_SHARE};
 use crate::render::{self, SceneSpec};
 
 /// Render a synthetic stereo frame of a photo card, or a scenario as a sequence.

@@ -89,16 +89,10 @@ pub fn play(take: &Scenario, timing: Timing) -> Played {
             busy_until += CATCH_UP_S * catch_up(&mut tracker, &mut film, &backlog, take.yuyv) as f64;
             backlog.clear();
         }
-        let in_view = film.in_view(i);
         let mut outcome = FrameOutcome {
             t,
             state: None,
-            judged: Judged {
-                visible: in_view.left,
-                both_eyes: in_view.both_eyes,
-                tracking: false,
-                errors: [f64::NAN; 3],
-            },
+            judged: Judged::without_pose(film.in_view(i)),
         };
         if t < busy_until {
             backlog.push(i);
@@ -264,7 +258,7 @@ impl Played {
                 s,
                 "  {:5.2} {:3.0}% {state} {p:6.1} mm {:5.1} % {r:5.1}°",
                 f.t,
-                100.0 * f.judged.visible,
+                100.0 * f.judged.in_view.left,
                 100.0 * z
             );
         }

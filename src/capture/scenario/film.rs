@@ -9,7 +9,7 @@ use nalgebra::{Isometry3, Point3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::{Judged, Scenario};
+use super::{InView, Judged, Scenario};
 use crate::camera::calibration::Resolution;
 use crate::camera::StereoRig;
 use crate::capture::record::Recorder;
@@ -145,10 +145,8 @@ impl Film {
     pub fn judge(&self, i: usize, hand_from_model: &Isometry3<f64>, size_mm: [f64; 2], tracking: bool) -> Judged {
         let truth = self.truth(i);
         let rel = |k: usize| (size_mm[k] - truth.size_mm[k]).abs() / truth.size_mm[k];
-        let in_view = self.in_view(i);
         Judged {
-            visible: in_view.left,
-            both_eyes: in_view.both_eyes,
+            in_view: self.in_view(i),
             tracking,
             errors: [
                 (hand_from_model.translation.vector - truth.hand_from_model.translation.vector).norm(),
@@ -239,15 +237,6 @@ pub fn visible_share(
         left: share(left),
         both_eyes: share(both),
     }
-}
-
-/// Shares of the card in view on a frame (see [`visible_share`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct InView {
-    /// The left camera's share.
-    pub left: f64,
-    /// Both cameras' share.
-    pub both_eyes: f64,
 }
 
 /// Whether `occluder` lies on the line of sight from the camera centre `eye` (left

@@ -92,14 +92,22 @@ pub const WRONG: [f64; 2] = [50.0, 20.0];
 /// Below this share of the card in view, the card is out of view.
 pub const OUT_OF_VIEW: f64 = 0.1;
 
+/// Shares of the card in view on a frame ([`film::visible_share`]): the left camera's,
+/// and both cameras'. A stereo pose and size needs both; a card coming in at the left
+/// edge is seen by the left camera first (for 0.5 s in `leave`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InView {
+    /// The left camera's share.
+    pub left: f64,
+    /// Both cameras' share.
+    pub both_eyes: f64,
+}
+
 /// A pose judged against the truth of its frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Judged {
-    /// Share of the card the left camera sees.
-    pub visible: f64,
-    /// Share of it both cameras see: a stereo pose and size needs both. A card coming
-    /// in at the left edge is seen by the left camera first (for 0.5 s in `leave`).
-    pub both_eyes: f64,
+    /// Shares of the card in view.
+    pub in_view: InView,
     /// Whether the pose said `tracking`.
     pub tracking: bool,
     /// Position (mm), worst relative size and rotation (degrees) errors.
@@ -107,9 +115,18 @@ pub struct Judged {
 }
 
 impl Judged {
+    /// A frame that got no pose of the card (while a whole-frame search ran).
+    pub fn without_pose(in_view: InView) -> Self {
+        Self {
+            in_view,
+            tracking: false,
+            errors: [f64::NAN; 3],
+        }
+    }
+
     /// Counts towards the success share: enough of the card in view.
     pub fn scored(&self) -> bool {
-        self.visible >= SCORED_SHARE
+        self.in_view.left >= SCORED_SHARE
     }
 
     /// A `tracking` pose within [`GOOD`].
@@ -124,7 +141,7 @@ impl Judged {
 
     /// A `tracking` pose while the card is out of view.
     pub fn tracking_out_of_view(&self) -> bool {
-        self.tracking && self.visible < OUT_OF_VIEW
+        self.tracking && self.in_view.left < OUT_OF_VIEW
     }
 }
 
@@ -158,7 +175,7 @@ pub fn reacquisitions(frames: &[(f64, Judged)]) -> Vec<Return> {
     let mut out = Vec::new();
     let mut away = false;
     for (i, (t, judged)) in frames.iter().enumerate() {
-        if judged.visible < OUT_OF_VIEW {
+        if judged.in_view.left < OUT_OF_VIEW {
             away = true;
         } else if away && judged.scored() {
             away = false;
@@ -166,7 +183,7 @@ pub fn reacquisitions(frames: &[(f64, Judged)]) -> Vec<Return> {
             let good = rest.iter().find(|(_, g)| g.good()).map_or(f64::INFINITY, |(s, _)| *s);
             let both = rest
                 .iter()
-                .find(|(_, g)| g.both_eyes >= SCORED_SHARE)
+                .find(|(_, g)| g.in_view.both_eyes >= SCORED_SHARE)
                 .map_or(good, |(s, _)| *s);
             out.push(Return {
                 left: good - t,
@@ -183,9 +200,8 @@ mod tests {
 
     #[test]
     fn a_return_into_view_counts_the_time_to_the_first_good_pose() {
-        let frame = |visible: f64, both_eyes: f64, tracking: bool, mm: f64| Judged {
-            visible,
-            both_eyes,
+        let frame = |left: f64, both_eyes: f64, tracking: bool, mm: f64| Judged {
+            in_view: InView { left, both_eyes },
             tracking,
             errors: [mm, 0.0, 0.0],
         };
@@ -229,8 +245,10 @@ mod tests {
     #[test]
     fn a_pose_is_judged_by_the_bounds_of_the_held_out_sequences() {
         let judged = |visible, tracking, errors| Judged {
-            visible,
-            both_eyes: visible,
+            in_view: InView {
+                left: visible,
+                both_eyes: visible,
+            },
             tracking,
             errors,
         };

@@ -16,8 +16,8 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::capture::scenario::film::{Film, InView};
-use crate::capture::scenario::Scenario;
+use crate::capture::scenario::film::Film;
+use crate::capture::scenario::{InView, Scenario};
 use crate::capture::DEFAULT_SCENE;
 use crate::cli::report::plot;
 use crate::config::Config;

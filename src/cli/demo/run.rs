@@ -6,8 +6,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{Quaternion, UnitQuaternion};
 
-use crate::capture::scenario::film::InView;
-use crate::capture::scenario::{reacquisitions, Judged, Return, GOOD, SCORED_SHARE, WRONG};
+use crate::capture::scenario::{reacquisitions, InView, Judged, Return, GOOD, SCORED_SHARE, WRONG};
 use crate::cli::report::plot::{self, Panel, Series, PALETTE};
 use crate::cli::report::stats::Samples;
 use crate::transport::messages::{PoseMsg, PoseSet, Status};
@@ -41,12 +40,7 @@ impl Run {
                 let visible = visible[(*id % visible.len() as u64) as usize];
                 let judged = match poses.get(id) {
                     Some(p) => judge(p, truth, visible),
-                    None => Judged {
-                        visible: visible.left,
-                        both_eyes: visible.both_eyes,
-                        tracking: false,
-                        errors: [f64::NAN; 3],
-                    },
+                    None => Judged::without_pose(visible),
                 };
                 (truth.capture_time_ns as f64 * 1e-9, judged)
             })
@@ -222,8 +216,7 @@ fn judge(p: &PoseMsg, t: &PoseMsg, visible: InView) -> Judged {
     let rotation = |q: [f64; 4]| UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
     let rel = |k: usize| (p.size_mm[k] - t.size_mm[k]).abs() / t.size_mm[k];
     Judged {
-        visible: visible.left,
-        both_eyes: visible.both_eyes,
+        in_view: visible,
         tracking: p.status == Status::Tracking as u32,
         errors: [
             position_error(p, t),
