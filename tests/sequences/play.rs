@@ -89,13 +89,9 @@ pub fn play(take: &Scenario, timing: Timing) -> Played {
             busy_until += CATCH_UP_S * catch_up(&mut tracker, &mut film, &backlog, take.yuyv) as f64;
             backlog.clear();
         }
-        let mut outcome = FrameOutcome {
-            t,
-            state: None,
-            judged: Judged::without_pose(film.in_view(i)),
-        };
-        if t < busy_until {
+        let (state, judged) = if t < busy_until {
             backlog.push(i);
+            (None, Judged::without_pose(film.in_view(i)))
         } else {
             let whole = tracker.will_acquire();
             let bytes = film.frame(i);
@@ -111,12 +107,14 @@ pub fn play(take: &Scenario, timing: Timing) -> Played {
             } else {
                 tracking_ms.push(ms);
             }
-            outcome.state = Some(est.state);
             let size = est.best.size_mm(model.l_p, model.b_p);
             let tracking = est.state == TrackState::Tracking;
-            outcome.judged = film.judge(i, &est.best.hand_from_model(), size, tracking);
-        }
-        frames.push(outcome);
+            (
+                Some(est.state),
+                film.judge(i, &est.best.hand_from_model(), size, tracking),
+            )
+        };
+        frames.push(FrameOutcome { t, state, judged });
     }
     Played {
         name: take.name,
