@@ -124,13 +124,14 @@ const EYES_STRUCTURE: f64 = 0.5;
 const SIZE_GAIN: f64 = 0.1;
 
 /// Relocations of the last tracked pose tried after the object was lost, before the next
-/// acquisition (each reads and searches the whole frame: 0.1–0.2 s at HD). An object
-/// that comes back into view as it left is found again by the first of them; one that
-/// comes back from the other side, once both eyes see most of it. With 8 they ran out
-/// while the `leave` take's card was away (1.5 s), and an acquisition, which cannot
-/// reach the card beyond the search space, held the frames as it came back (0.93 s
-/// after the left camera saw it; 0.57 s with 12). 16 cost 18 points on a take whose
-/// last tracked pose was wrong (`crossed_takes`, `sweep-60fps` k = 6), 12 one.
+/// acquisition (each reads and searches the whole frame: 0.1–0.2 s at HD in the play,
+/// about 65 ms in the processes). An object that comes back into view as it left is
+/// found again by the first of them; one that comes back from the other side, once both
+/// eyes see most of it. With 8 they ran out while the `leave` take's card was away
+/// (1.5 s), and an acquisition, which cannot reach the card beyond the search space,
+/// held the frames as it came back (0.93 s after the left camera saw it; 0.57 s with
+/// 12). 16 cost 18 points on a take whose last tracked pose was wrong (`crossed_takes`,
+/// `sweep-60fps` k = 6), 12 one.
 pub const RECOVERIES: usize = 12;
 
 /// What the tracker does with the next frame.

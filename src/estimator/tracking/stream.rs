@@ -153,13 +153,13 @@ pub struct StreamTracker {
 /// tracking frames are read in regions around the prediction, and a point beyond a
 /// region, on the image but not read, must not go free. Its relocations and recoveries
 /// read the whole frame and judge a card cut by the image's border by the part each eye
-/// shows, as the one-shot estimate does (set where a whole frame is prepared): a card coming back into view at the left
-/// border reaches the right camera's view later, and with the part that camera did not
-/// show counted as mismatches the recoveries came out 13–16 % short and the verdict did
-/// not find a right one (`leave` at 4.2–4.27 s, the right camera seeing 71–87 % of the
-/// card). Its acquisitions keep the rule: judged so, the acquisition of `sweep-60fps`
-/// at 1.13 s (the slowest timing) landed 506 mm off instead of on the card, and the
-/// take lost 7 points.
+/// shows, as the one-shot estimate does (set where a whole frame is prepared): a card
+/// coming back into view at the left border reaches the right camera's view later, and
+/// with the part that camera did not show counted as mismatches the recoveries came out
+/// 13–16 % short and the verdict did not find a right one (`leave` at 4.2–4.27 s, the
+/// right camera seeing 71–87 % of the card). Its acquisitions keep the rule: judged so,
+/// the acquisition of `sweep-60fps` at 1.13 s (the slowest timing) landed 506 mm off
+/// instead of on the card, and the take lost 7 points.
 fn as_tracker_scores(scorer: &mut Scorer, tracking_frames: bool) {
     scorer.rank_by_sum = false;
     scorer.partial_view = false;
