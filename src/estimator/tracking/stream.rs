@@ -133,16 +133,17 @@ pub struct StreamTracker {
     ready: Option<Ready>,
 }
 
-/// How the tracker scores. Its acquisitions and relocations rank by `F` itself, with
-/// eq. 17's similarity factor ([`Scorer::rank_by_sum`] off). Ranked by the sum as the
-/// one-shot estimate is, the tracking sequences got worse: after whole-frame searches on
-/// motion-blurred frames of a red card on a red wall, a pose 200–590 mm off was called
-/// tracking. Its recoveries rank by the sum: just after an occluder has passed, its
-/// edge still hides part of the card from one eye only, and the factor cut the card's
-/// `F` to 0.72 (the sum 1.37) while a region of the wall whose eyes scored alike won,
-/// 700 mm off (the `occlude` take, tracker seed 7).
+/// How the tracker scores, on its tracking frames (`whole_frame` `None`) or on a whole
+/// frame searched for `whole_frame`'s plan. Its acquisitions and relocations rank by
+/// `F` itself, with eq. 17's similarity factor ([`Scorer::rank_by_sum`] off). Ranked by
+/// the sum as the one-shot estimate is, the tracking sequences got worse: after
+/// whole-frame searches on motion-blurred frames of a red card on a red wall, a pose
+/// 200–590 mm off was called tracking. Its recoveries rank by the sum: just after an
+/// occluder has passed, its edge still hides part of the card from one eye only, and the
+/// factor cut the card's `F` to 0.72 (the sum 1.37) while a region of the wall whose
+/// eyes scored alike won, 700 mm off (the `occlude` take, tracker seed 7).
 ///
-/// Its `tracking_frames` read the similarity factor on the card's inner points alone,
+/// Its tracking frames read the similarity factor on the card's inner points alone,
 /// [`INNER_SIMILARITY_SIGMA`] wide ([`Scorer::inner_similarity`]): near the cameras the
 /// outer strip lies on a wall that each eye sees at another place behind the card, and
 /// the factor on every point halved the `F` of the right pose (0.89 against 1.73 for a
@@ -153,17 +154,17 @@ pub struct StreamTracker {
 /// tracking frames are read in regions around the prediction, and a point beyond a
 /// region, on the image but not read, must not go free. Its relocations and recoveries
 /// read the whole frame and judge a card cut by the image's border by the part each eye
-/// shows, as the one-shot estimate does (set where a whole frame is prepared): a card
-/// coming back into view at the left border reaches the right camera's view later, and
-/// with the part that camera did not show counted as mismatches the recoveries came out
-/// 13–16 % short and the verdict did not find a right one (`leave` at 4.2–4.27 s, the
-/// right camera seeing 71–87 % of the card). Its acquisitions keep the rule: judged so,
-/// the acquisition of `sweep-60fps` at 1.13 s (the slowest timing) landed 506 mm off
-/// instead of on the card, and the take lost 7 points.
-fn as_tracker_scores(scorer: &mut Scorer, tracking_frames: bool) {
-    scorer.rank_by_sum = false;
-    scorer.partial_view = false;
-    scorer.inner_similarity = tracking_frames.then_some(INNER_SIMILARITY_SIGMA);
+/// shows, as the one-shot estimate does: a card coming back into view at the left
+/// border reaches the right camera's view later, and with the part that camera did not
+/// show counted as mismatches the recoveries came out 13–16 % short and the verdict did
+/// not find a right one (`leave` at 4.2–4.27 s, the right camera seeing 71–87 % of the
+/// card). Its acquisitions keep the rule: judged so, the acquisition of `sweep-60fps`
+/// at 1.13 s (the slowest timing) landed 506 mm off instead of on the card, and the
+/// take lost 7 points.
+fn as_tracker_scores(scorer: &mut Scorer, whole_frame: Option<Plan>) {
+    scorer.rank_by_sum = whole_frame == Some(Plan::Recover);
+    scorer.partial_view = whole_frame.is_some_and(|plan| plan != Plan::Acquire);
+    scorer.inner_similarity = whole_frame.is_none().then_some(INNER_SIMILARITY_SIGMA);
 }
 
 /// The width of the similarity factor on a tracking frame's inner points. With the
@@ -178,7 +179,7 @@ impl StreamTracker {
     /// for the first frame to acquire the object on.
     pub fn new(model: PhotoModel, config: Config) -> Self {
         let mut scorer = scorer_for(&model, &config);
-        as_tracker_scores(&mut scorer, true);
+        as_tracker_scores(&mut scorer, None);
         let bounds =
             Bounds::new(&config.search, &model, config.ga.mode == Mode::Robust).reaching(config.tracking.reach);
         let points = [PointSet::from_model(
@@ -266,9 +267,7 @@ impl StreamTracker {
                 let mut images = frame.to_images().ok_or_else(|| FrameError::incomplete(frame))?;
                 images.apply_gains(self.exposure.gains());
                 let mut prepared = Prepared::new(&self.model, &images, &self.config)?;
-                as_tracker_scores(&mut prepared.scorer, false);
-                prepared.scorer.rank_by_sum = plan == Plan::Recover;
-                prepared.scorer.partial_view = plan != Plan::Acquire;
+                as_tracker_scores(&mut prepared.scorer, Some(plan));
                 Ready::Whole(Box::new(prepared), images.left)
             }
         };
