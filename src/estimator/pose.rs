@@ -163,6 +163,25 @@ impl PoseSize {
         }
     }
 
+    /// This pose turned by `angle` about its own x or y axis (`about_x`), the other axis
+    /// stretched so that its image keeps its extent across the left camera's line of
+    /// sight (`left_from_hand` the hand–eye transform, `box_px` the photo box).
+    pub fn turned_in_view(&self, left_from_hand: &Isometry3<f64>, box_px: [f64; 2], about_x: bool, angle: f64) -> Self {
+        let sight = self.sight(left_from_hand).normalize();
+        let (axis, other) = if about_x {
+            (Vector3::x(), Vector3::y())
+        } else {
+            (Vector3::y(), Vector3::x())
+        };
+        let across = |q: &Self| {
+            let d = q.rotation() * other;
+            (d - sight * d.dot(&sight)).norm()
+        };
+        let q = self.turned(axis, angle);
+        let stretch = (across(self) / across(&q).max(0.2)).clamp(0.5, 2.0);
+        q.resized(box_px, !about_x, stretch, 0.0)
+    }
+
     /// The orientation as `[w, x, y, z]` with `w ≥ 0`.
     pub fn orientation_wxyz(&self) -> [f64; 4] {
         wxyz(&self.rotation())
@@ -239,5 +258,22 @@ mod tests {
         let [l, b] = q.size_mm(200.0, 160.0);
         assert!((l - 100.0).abs() < 1e-9, "{l}");
         assert!((b - 80.0 / tilt.cos()).abs() < 1e-9, "{b}");
+    }
+
+    #[test]
+    fn a_turn_in_view_keeps_the_image_and_turns_back_to_the_start() {
+        // Tilted 20° about its width, 600 mm straight ahead; the hand frame is the camera frame.
+        let tilted = Isometry3::new(Vector3::new(0.0, 0.0, 600.0), Vector3::y() * 20f64.to_radians());
+        let p = PoseSize::from_pose(&tilted, [100.0, 80.0], 200.0, 160.0);
+        let (hand, box_px) = (Isometry3::identity(), [200.0, 160.0]);
+        let q = p.turned_in_view(&hand, box_px, false, 30f64.to_radians());
+        assert!((q.position - p.position).norm() < 1e-9, "the centre stays");
+        // At 50° the length spans what 100 mm did at 20°; the width is not touched.
+        let [l, b] = q.size_mm(200.0, 160.0);
+        let expected = 100.0 * 20f64.to_radians().cos() / 50f64.to_radians().cos();
+        assert!((l - expected).abs() < 1e-6 && (b - 80.0).abs() < 1e-9, "{l} {b}");
+        let back = q.turned_in_view(&hand, box_px, false, -30f64.to_radians());
+        assert!(back.rotation().angle_to(&p.rotation()) < 1e-9);
+        assert!((back.size_mm(200.0, 160.0)[0] - 100.0).abs() < 1e-6);
     }
 }

@@ -32,6 +32,8 @@ enum Move {
     Sight { keep_apparent: bool },
     /// About the model's own axis.
     Turn(Vector3<f64>),
+    /// About the model's own x (`true`) or y axis, its image's extent kept.
+    TurnInView(bool),
 }
 
 const MOVES: [Move; 14] = [
@@ -76,26 +78,50 @@ fn moved(problem: &Problem, p: &PoseSize, m: Move, s: f64) -> PoseSize {
             }
         }
         Move::Turn(axis) => p.turned(axis, s * TURN_PER_STEP),
+        Move::TurnInView(about_x) => {
+            p.turned_in_view(&problem.scorer.left_from_hand, box_px, about_x, s * TURN_PER_STEP)
+        }
     }
 }
 
 /// Climbs from `start` on `level` for at most `budget` evaluations; returns the best
 /// and its fitness.
 pub fn climb(problem: &Problem, level: usize, start: Genes, budget: usize) -> (Genes, Fitness) {
+    climb_on(problem, level, start, budget, &MOVES)
+}
+
+/// The moves of [`turn_in_view`]'s climbs: those that keep the image's extent (shifts
+/// in its plane, along the line of sight with the apparent size, turns in view, roll).
+const IN_VIEW: [Move; 6] = [
+    Move::Shift(Vector3::new(1.0, 0.0, 0.0)),
+    Move::Shift(Vector3::new(0.0, 1.0, 0.0)),
+    Move::Sight { keep_apparent: true },
+    Move::TurnInView(true),
+    Move::TurnInView(false),
+    Move::Turn(Vector3::new(0.0, 0.0, 1.0)),
+];
+
+/// [`climb`] along `moves` only (at most [`MOVES`]' number).
+fn climb_on(problem: &Problem, level: usize, start: Genes, budget: usize, moves: &[Move]) -> (Genes, Fitness) {
     let mut best = (start, problem.evaluate(level, &start));
     let mut step = FIRST_STEP;
     let mut used = 1;
     // On the stack: tracking frames climb too, and they must not allocate.
     let mut fit = [Fitness::default(); 2 * MOVES.len()];
-    while step >= LAST_STEP && used + fit.len() <= budget {
+    let n = 2 * moves.len();
+    let fit = &mut fit[..n];
+    while step >= LAST_STEP && used + n <= budget {
         let p = problem.bounds.decode(&best.0);
         let around: [Genes; 2 * MOVES.len()] = std::array::from_fn(|k| {
             let s = if k % 2 == 0 { step } else { -step };
-            problem.bounds.encode(&moved(problem, &p, MOVES[k / 2], s))
+            moves
+                .get(k / 2)
+                .map_or(best.0, |&m| problem.bounds.encode(&moved(problem, &p, m, s)))
         });
-        problem.evaluate_batch(level, &around, &mut fit);
-        used += around.len();
-        let i = best_index(&fit, Ties::First);
+        let around = &around[..n];
+        problem.evaluate_batch(level, around, fit);
+        used += n;
+        let i = best_index(fit, Ties::First);
         if fit[i].score > best.1.score {
             best = (around[i], fit[i]);
         } else {
@@ -159,3 +185,41 @@ pub fn sweep_sizes(problem: &Problem, level: usize, start: Genes) -> (Genes, boo
 /// The sweep's steps each way and their ratio: ×1.03^±12 ≈ ×0.70 to ×1.43.
 const SWEEP_STEPS: i32 = 12;
 const SWEEP_RATIO: f64 = 1.03;
+
+/// `start` turned about its own x or y axis by 10° to 50° each way, its image's extent
+/// kept ([`PoseSize::turned_in_view`]); the three best of those climbed on `level`
+/// along the moves that keep that extent too, `budget` evaluations each. Returns the best climbed, or `start` where none beats it. The image
+/// of a card barely tells a tilt of 10° from one of 45° with the length cut by the
+/// cosine: a search can settle on the wrong one, and no small step leaves it.
+pub fn turn_in_view(problem: &Problem, level: usize, start: (Genes, Fitness), budget: usize) -> (Genes, Fitness) {
+    let p = problem.bounds.decode(&start.0);
+    let left_from_hand = &problem.scorer.left_from_hand;
+    let mut candidates = Vec::new();
+    for about_x in [false, true] {
+        for deg in IN_VIEW_TURNS_DEG {
+            for sign in [1.0, -1.0] {
+                let q = p.turned_in_view(left_from_hand, problem.scorer.box_px, about_x, sign * deg.to_radians());
+                if problem.bounds.contains(&q) {
+                    candidates.push(problem.bounds.encode(&q));
+                }
+            }
+        }
+    }
+    let mut fit = vec![Fitness::default(); candidates.len()];
+    problem.evaluate_batch(level, &candidates, &mut fit);
+    let mut order: Vec<usize> = (0..candidates.len()).collect();
+    order.sort_by(|&a, &b| fit[b].score.total_cmp(&fit[a].score));
+    let mut best = start;
+    for &i in order.iter().take(TURN_STARTS) {
+        let climbed = climb_on(problem, level, candidates[i], budget, &IN_VIEW);
+        if climbed.1.score > best.1.score {
+            best = climbed;
+        }
+    }
+    best
+}
+
+/// Turns of [`turn_in_view`], degrees each way.
+const IN_VIEW_TURNS_DEG: [f64; 5] = [10.0, 20.0, 30.0, 40.0, 50.0];
+/// Candidates of [`turn_in_view`] climbed.
+const TURN_STARTS: usize = 3;
