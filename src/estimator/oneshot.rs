@@ -162,9 +162,9 @@ impl Prepared {
     /// ([`ga::compass::turn_in_view`]), taken where it scores higher, lies 10° or more
     /// from it, and the two eyes see it about as consistently (their brightness agreeing
     /// at most 0.02 less, their detail at least as well: the verdict's stereo term);
-    /// with its verdict. A card found in part
-    /// under a bar and grown back keeps the tilt the part had, which may be 30–40° off.
-    /// Smaller turns are left: under a bar the score prefers tilts a few degrees off.
+    /// with its verdict. A card found in part under a bar and grown back keeps the tilt
+    /// the part had, which may be 30–40° off. Smaller turns are left: under a bar the
+    /// score prefers tilts a few degrees off.
     fn turn_plane(&self, problem: &Problem, outcome: &mut Outcome) {
         let start = (problem.bounds.encode(&outcome.best), outcome.fitness);
         let (g, fitness) = ga::compass::turn_in_view(problem, 0, start, TURN_EVALUATIONS);

@@ -112,6 +112,7 @@ fn climb_on(problem: &Problem, level: usize, start: Genes, budget: usize, moves:
     let fit = &mut fit[..n];
     while step >= LAST_STEP && used + n <= budget {
         let p = problem.bounds.decode(&best.0);
+        // Past `moves`, the array holds copies of the best, which are not evaluated.
         let around: [Genes; 2 * MOVES.len()] = std::array::from_fn(|k| {
             let s = if k % 2 == 0 { step } else { -step };
             moves
@@ -188,9 +189,10 @@ const SWEEP_RATIO: f64 = 1.03;
 
 /// `start` turned about its own x or y axis by 10° to 50° each way, its image's extent
 /// kept ([`PoseSize::turned_in_view`]); the three best of those climbed on `level`
-/// along the moves that keep that extent too, `budget` evaluations each. Returns the best climbed, or `start` where none beats it. The image
-/// of a card barely tells a tilt of 10° from one of 45° with the length cut by the
-/// cosine: a search can settle on the wrong one, and no small step leaves it.
+/// along the moves that keep that extent too, `budget` evaluations each. Returns the
+/// best climbed, or `start` where none beats it. The image of a card barely tells a
+/// tilt of 10° from one of 45° with the length cut by the cosine: a search can settle
+/// on the wrong one, and no small step leaves it.
 pub fn turn_in_view(problem: &Problem, level: usize, start: (Genes, Fitness), budget: usize) -> (Genes, Fitness) {
     let p = problem.bounds.decode(&start.0);
     let left_from_hand = &problem.scorer.left_from_hand;
