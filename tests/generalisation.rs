@@ -635,6 +635,16 @@ fn a_card_grown_back_at_a_wrong_tilt_is_turned_to_its_plane() {
     }
 }
 
+/// Where five searches find nothing, the sixth (a dense scan one level finer) counts
+/// only where it is found or scores clearly higher: on scene 434 of the eleventh draw
+/// (the coffee card, blurred, darkened to 0.7 and a bar over 19 %) it found the card
+/// 1.5 mm off, scoring 6.26 against 4.97 for the best of the five (215 mm off), but
+/// the verdict does not find it (the bar). Kept, it ends within 10 mm, 5 % and 5°.
+#[test]
+fn a_sixth_search_that_scores_clearly_higher_is_kept_though_not_found() {
+    assert_estimated_within_bounds(434);
+}
+
 /// Estimates scene `i` with its configuration and asserts the result lies within 10 mm,
 /// 5 % and 5° of the truth.
 fn assert_estimated_within_bounds(i: u64) {

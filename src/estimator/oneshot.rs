@@ -269,9 +269,10 @@ struct Retry {
     tilted: bool,
     /// Its scan is dense and ranks by structure too (a wall of the card's colours).
     dense: bool,
-    /// Its result is kept only where the verdict finds it. A dense scan one level finer
-    /// reaches the smallest placements all over the image; where it finds nothing, its
-    /// best may outscore a nearer pose of the searches before by a hair.
+    /// Its result is kept only where the verdict finds it or it scores clearly higher
+    /// ([`CLEAR_MARGIN`]). A dense scan one level finer reaches the smallest placements
+    /// all over the image; where it finds nothing, its best may outscore a nearer pose
+    /// of the searches before by a hair.
     found_only: bool,
 }
 
@@ -279,7 +280,7 @@ impl Retry {
     /// Search 0 is the plain one; 1 starts finer, 2 scans tilted, 3 both; 4 and later
     /// scan densely (the slowest, when the others found nothing), every second one finer
     /// and then over small apparent sizes only ([`Problem::scan_small_only`]);
-    /// from 5 on a result counts only where it is found.
+    /// from 5 on a result counts only where it is found or scores clearly higher.
     fn of(attempt: u64) -> Self {
         Self {
             finer: attempt % 2 == 1,
@@ -366,7 +367,7 @@ pub fn search_observed(
         }
         prepared.settle_plane(&problem, &mut outcome);
         let found = outcome.verdict.found;
-        best = Some(better(best, outcome, found || !retry.found_only));
+        best = Some(better(best, outcome, retry.found_only));
         if found {
             break;
         }
@@ -379,14 +380,26 @@ pub fn search_observed(
     best
 }
 
-/// The higher-scoring of two searches' outcomes (of equal scores, or where the later one
-/// does not `contend`, the earlier), counting the searches and evaluations of both.
-fn better(earlier: Option<Outcome>, later: Outcome, contends: bool) -> Outcome {
+/// How much higher a search that counts only where found ([`Retry::found_only`]) must
+/// score to be kept though not found. On 116 of the 119 random scenes where the sixth
+/// search ran, it scored at most 0.11 above the five before; on two, 1.2 and 1.3
+/// above, it was the card (1.2 and 1.5 mm off), and on one 5.0 above five scores of 0.
+const CLEAR_MARGIN: f64 = 0.5;
+
+/// The higher-scoring of two searches' outcomes (of equal scores the earlier; a later one
+/// counting only where `found_only` and not found, only where it scores [`CLEAR_MARGIN`]
+/// higher), counting the searches and evaluations of both.
+fn better(earlier: Option<Outcome>, later: Outcome, found_only: bool) -> Outcome {
     match earlier {
         None => later,
         Some(e) => {
             let (evaluations, searches) = (e.evaluations + later.evaluations, e.searches + later.searches);
-            let kept = if !contends || e.fitness.score >= later.fitness.score {
+            let margin = if found_only && !later.verdict.found {
+                CLEAR_MARGIN
+            } else {
+                0.0
+            };
+            let kept = if e.fitness.score + margin >= later.fitness.score {
                 e
             } else {
                 later
@@ -528,19 +541,22 @@ mod tests {
     }
 
     #[test]
-    fn a_later_search_is_kept_where_it_scores_higher_and_contends() {
-        let kept = |later: Outcome, contends: bool| better(Some(outcome(0.0, 5.40, false)), later, contends);
-        // Higher and contending: kept, both searches counted.
-        let higher = kept(outcome(1.0, 5.49, false), true);
+    fn a_later_search_is_kept_where_it_scores_higher_or_clearly_higher_if_found_only() {
+        let kept = |later: Outcome, found_only: bool| better(Some(outcome(0.0, 5.40, false)), later, found_only);
+        // Higher: kept, both searches counted.
+        let higher = kept(outcome(1.0, 5.49, false), false);
         assert_eq!(
             (higher.best.position.x, higher.searches, higher.evaluations),
             (1.0, 2, 2000)
         );
-        // The last retry's result, not found, does not contend however it scores.
-        assert_eq!(kept(outcome(1.0, 5.49, false), false).best.position.x, 0.0);
+        // The last retries' result, not found, only where it scores 0.5 higher.
+        assert_eq!(kept(outcome(1.0, 5.89, false), true).best.position.x, 0.0);
+        assert_eq!(kept(outcome(1.0, 5.91, false), true).best.position.x, 1.0);
+        // Found, it counts as any other.
+        assert_eq!(kept(outcome(1.0, 5.49, true), true).best.position.x, 1.0);
         // Equal scores keep the earlier.
-        assert_eq!(kept(outcome(1.0, 5.40, true), true).best.position.x, 0.0);
-        assert_eq!(better(None, outcome(2.0, 1.0, false), false).best.position.x, 2.0);
+        assert_eq!(kept(outcome(1.0, 5.40, true), false).best.position.x, 0.0);
+        assert_eq!(better(None, outcome(2.0, 1.0, false), true).best.position.x, 2.0);
     }
 
     #[test]

@@ -200,7 +200,7 @@ pub struct RobustSettings {
     pub texture_weight: f64,
     /// One-shot searches run again, each from the next seed, while the verdict finds
     /// nothing; the best-scoring result of all is kept (of the fifth retry and later,
-    /// only where found). 0 searches once.
+    /// only where found or 0.5 higher). 0 searches once.
     pub retries: usize,
 }
 
