@@ -386,9 +386,9 @@ pub fn search_observed(
 /// above, it was the card (1.2 and 1.5 mm off), and on one 5.0 above five scores of 0.
 const CLEAR_MARGIN: f64 = 0.5;
 
-/// The higher-scoring of two searches' outcomes (of equal scores the earlier; a later one
-/// counting only where `found_only` and not found, only where it scores [`CLEAR_MARGIN`]
-/// higher), counting the searches and evaluations of both.
+/// The higher-scoring of two searches' outcomes (of equal scores the earlier), counting
+/// the searches and evaluations of both. A later one not found, from a search that
+/// counts only where found (`found_only`), must score [`CLEAR_MARGIN`] higher.
 fn better(earlier: Option<Outcome>, later: Outcome, found_only: bool) -> Outcome {
     match earlier {
         None => later,
@@ -549,7 +549,7 @@ mod tests {
             (higher.best.position.x, higher.searches, higher.evaluations),
             (1.0, 2, 2000)
         );
-        // The last retries' result, not found, only where it scores 0.5 higher.
+        // A found-only search's result, not found, only where it scores 0.5 higher.
         assert_eq!(kept(outcome(1.0, 5.89, false), true).best.position.x, 0.0);
         assert_eq!(kept(outcome(1.0, 5.91, false), true).best.position.x, 1.0);
         // Found, it counts as any other.
