@@ -499,7 +499,8 @@ fn turned_and_settled(d: &Drawn) -> Vec<(String, [[f64; 3]; 2])> {
 /// grows back to within 2 mm and 2 %. Cut on another side, with the bar still inside
 /// the model, the smooth rocket photo of scene 8 grows into the wall (140–200 mm off):
 /// the verdict must not call any such pose found. A truth cut by 30 % about its centre
-/// grows back too (scene 43). The truth of two clean scenes is left as it is.
+/// grows back too (scene 43). The truth of two clean scenes stays within 1 mm, 1 % and
+/// 0.5° of itself.
 #[test]
 fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
     use photopose::estimator::verify::hidden;
@@ -513,7 +514,7 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
         let box_px = prepared.scorer.box_px;
         for (length, side) in [(false, -0.5), (true, -0.5), (true, 0.5), (false, 0.5)] {
             let cut = truth.resized(box_px, length, 0.75, side);
-            let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px, false);
+            let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px);
             let [before, after] = [cut, grown].map(|p| errors(&d, &p));
             let what = format!("scene {i}, side {length} {side}: {before:.3?} -> {after:.3?} (mm, size, °)");
             if !length && side < 0.0 {
@@ -530,7 +531,7 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
         let (d, prepared, truth) = prepared_truth(i);
         let box_px = prepared.scorer.box_px;
         let cut = truth.resized(box_px, true, 0.7, 0.0);
-        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px, false);
+        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px);
         let [before, after] = [cut, grown].map(|p| errors(&d, &p));
         let what = format!("scene {i}, about the centre: {before:.3?} -> {after:.3?} (mm, size, °)");
         assert!(i != 43 || (after[0] < 2.0 && after[1] < 0.02), "{what}");
@@ -538,9 +539,16 @@ fn a_model_shrunk_onto_part_of_its_card_is_grown_back() {
         assert!(!(far && prepared.verdict(&grown).found), "found: {what}");
     }
     for i in [5, 24] {
-        let (_, prepared, truth) = prepared_truth(i);
-        let kept = hidden::uncovered(&prepared.two_eyes(), &truth, prepared.scorer.box_px, false);
-        assert_eq!(kept, truth, "scene {i}");
+        let (d, prepared, truth) = prepared_truth(i);
+        let kept = errors(
+            &d,
+            &hidden::uncovered(&prepared.two_eyes(), &truth, prepared.scorer.box_px),
+        );
+        println!("scene {i}, the truth: {kept:.3?}");
+        assert!(
+            kept[0] < 1.0 && kept[1] < 0.01 && kept[2] < 0.5,
+            "scene {i}, the truth: {kept:.3?}"
+        );
     }
 }
 
@@ -561,7 +569,7 @@ fn a_shrunk_and_turned_model_is_grown_and_turned_back() {
         let cut = truth
             .resized(box_px, false, 0.75, -0.5)
             .turned(Vector3::z(), roll.to_radians());
-        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px, false);
+        let grown = hidden::uncovered(&prepared.two_eyes(), &cut, box_px);
         let [before, after] = [cut, grown].map(|p| errors(&d, &p));
         let what = format!("turned {roll}°: {before:.3?} -> {after:.3?} (mm, size, °)");
         assert!(after[0] < 2.0 && after[1] < 0.02 && after[2] < 1.0, "{what}");
@@ -571,11 +579,10 @@ fn a_shrunk_and_turned_model_is_grown_and_turned_back() {
 /// Under blur, a colour cast and a bar, the search can end a few per cent long or short
 /// along one axis, about the card's centre, where no side's growth lines the photo up
 /// clearly better: scene 224 of the sixth draw (a coffee card, defocused, under a bar)
-/// ended 7.1 % short, scene 313 of the eighth 6.3 %. A result the verdict does not find
-/// has its edges and roll climbed on that alignment even where no side grows
-/// ([`hidden::uncovered`] with `line_up_anyway`): the truth
-/// of each, cut or stretched by 7 % along either axis, comes back within 3 %; the truth
-/// stays within 3 %.
+/// ended 7.1 % short, scene 313 of the eighth 6.3 %. A result has its edges and roll
+/// lined up even where no side grows ([`hidden::uncovered`]): the truth of each, cut
+/// or stretched by 7 % along either axis, comes back within 3 %; the truth stays within
+/// 3 %.
 #[test]
 fn a_model_a_few_per_cent_off_in_size_is_realigned() {
     use photopose::estimator::verify::hidden;
@@ -583,14 +590,14 @@ fn a_model_a_few_per_cent_off_in_size_is_realigned() {
         let d = draw(i);
         let (prepared, truth) = (d.prepared(), d.truth());
         let box_px = prepared.scorer.box_px;
-        let kept = errors(&d, &hidden::uncovered(&prepared.two_eyes(), &truth, box_px, true));
+        let kept = errors(&d, &hidden::uncovered(&prepared.two_eyes(), &truth, box_px));
         assert!(
             kept[0] < 2.0 && kept[1] < 0.03 && kept[2] < 1.0,
             "scene {i}, the truth: {kept:.3?}"
         );
         for (length, factor) in [(true, 0.93), (false, 0.93), (true, 1.07), (false, 1.07)] {
             let off = truth.resized(box_px, length, factor, 0.0);
-            let back = hidden::uncovered(&prepared.two_eyes(), &off, box_px, true);
+            let back = hidden::uncovered(&prepared.two_eyes(), &off, box_px);
             let [before, after] = [off, back].map(|p| errors(&d, &p));
             let what = format!("scene {i}, length {length} ×{factor}: {before:.3?} -> {after:.3?} (mm, size, °)");
             assert!(after[0] < 2.0 && after[1] < 0.03 && after[2] < 1.5, "{what}");
@@ -643,6 +650,20 @@ fn a_card_grown_back_at_a_wrong_tilt_is_turned_to_its_plane() {
 #[test]
 fn a_sixth_search_that_scores_clearly_higher_is_kept_though_not_found() {
     assert_estimated_within_bounds(434);
+}
+
+/// The climbs of a result's edges stop on the first peak they meet, and a found result
+/// was not lined up at all: on scene 64 of the second draw (the rocket card under a bar
+/// over 22 %, motion blur) the side the bar hid grew back only part of the way (14.9 %
+/// short, 21° off, not found); scene 347 of the ninth (the same card, a bar over 18 %,
+/// defocus, darkened to 0.7) was found 22 % short. Each side's and axis's extent scanned
+/// over 0.9–1.5 before the climbs, and every result lined up, both end within 10 mm, 5 %
+/// and 5°.
+#[test]
+fn a_side_left_short_is_scanned_back_found_or_not() {
+    for i in [64, 347] {
+        assert_estimated_within_bounds(i);
+    }
 }
 
 /// Estimates scene `i` with its configuration and asserts the result lies within 10 mm,

@@ -126,12 +126,12 @@ impl Prepared {
     }
 
     /// `outcome`'s pose with the sides grown that something in front of the card hid
-    /// and its edges and roll lined up with the photo ([`hidden::uncovered`]; where no
-    /// side grows, only if the verdict does not find it); its fitness and verdict read
-    /// again. Unchanged if the new pose leaves the search space.
+    /// and its edges and roll lined up with the photo ([`hidden::uncovered`], found or
+    /// not); its fitness and verdict read again. Unchanged if the new pose leaves the
+    /// search space.
     fn uncover(&self, problem: &Problem, outcome: &mut Outcome) {
         let box_px = self.scorer.box_px;
-        let grown = hidden::uncovered(&self.two_eyes(), &outcome.best, box_px, !outcome.verdict.found);
+        let grown = hidden::uncovered(&self.two_eyes(), &outcome.best, box_px);
         if grown == outcome.best || !problem.bounds.contains(&grown) {
             return;
         }

@@ -165,7 +165,7 @@ pub fn summary_lines(rows: &[Row], seconds: f64) -> Vec<String> {
     lines.push(verdict_line(rows));
     let outranks = rows.iter().filter(|r| r.truth_outranks()).count();
     lines.push(format!(
-        "truth outranks the robust result on {outranks} of {} scenes (the search missed a pose that scores higher, or the plane sweep left the score's peak for the plane both eyes agree on)",
+        "truth outranks the robust result on {outranks} of {} scenes (the search missed a pose that scores higher, or the plane sweep or the lining up of the sides left the score's peak)",
         rows.len()
     ));
     lines.push(format!("total wall time {seconds:.0} s"));
