@@ -8,8 +8,8 @@
 //! of an axis about the centre. The grown model's edges and its roll are then climbed
 //! in turn on the same correlation and on the brightness step across the model's
 //! sides (its outline), after a scan of each side's and axis's extent; so are those of
-//! every result where no side grows, found or not. (The right eye sees a nearer occluder's
-//! edge shifted into that part, so the correlation does not read it.)
+//! every result where no side grows, found or not. (The right eye sees a nearer
+//! occluder's edge shifted into that part, so the correlation does not read it.)
 
 use nalgebra::Vector3;
 
@@ -80,9 +80,9 @@ pub fn uncovered(two: &TwoEyes, c: &PoseSize, box_px: [f64; 2]) -> PoseSize {
 /// after a scan of each side's and axis's extent ([`scanned`]). A model shrunk onto the
 /// part of the card a bar leaves visible often sits turned a few degrees as well; its
 /// sides grown at that roll land the size 10–20 % off, and each climb alone stops where
-/// the other's error holds it. A model short or long about its
-/// centre (both sides a few millimetres in or out) needs both sides moved at once: one
-/// side at a time, scene 48 of the random set stayed 5.3 % short, 3.9 % with the axes.
+/// the other's error holds it. A model short or long about its centre (both sides a few
+/// millimetres in or out) needs both sides moved at once: one side at a time, scene 48
+/// of the random set stayed 5.3 % short, 3.9 % with the axes.
 fn lined_up(two: &TwoEyes, shown: &PoseSize, mut q: PoseSize, box_px: [f64; 2]) -> PoseSize {
     let mut at = outlined(two, shown, &q, box_px);
     let edges = |q: &PoseSize, step: f64| {
